@@ -1,0 +1,96 @@
+// weft/effects/force_field.hpp — accelerations from springs and gravity, in parallel,
+// bitwise identical for any thread count.
+//
+// Design note
+// -----------
+// a_i = w_i (sum of spring forces on i) + [w_i > 0] g, with w_i the inverse mass (0 for
+// a pinned particle, whose acceleration is therefore exactly zero).
+//
+// Parallel accumulation without races and without floating-point atomics. Three
+// strategies, each deterministic because every particle's sum is formed in an order that
+// depends only on the model (see docs/architecture.md for the measurements):
+//   Gather      pass 1, per spring: f_s into an (m x 3) buffer; pass 2, per particle:
+//               sum of +f_s / -f_s over the particle's springs, in the order of a CSR
+//               incidence list built once. Works for any model. 2 passes.
+//   Coloured    springs are greedily edge-coloured so no two springs of a colour share a
+//               particle; colour by colour, each spring adds f to a and -f to b directly.
+//               Any model. One pass per colour (about 12-14 on a cloth grid).
+//   GridStencil regular grids only: springs fall into families with a fixed neighbour
+//               offset (right, down, two diagonals, skip-right, skip-down) and uniform
+//               parameters. Per family, f is computed into an array indexed by the first
+//               endpoint, with contiguous loads only; then each particle sums
+//               f_k[i] - f_k[i - offset_k] over families: contiguous again, no index
+//               lists at all. Slots without a spring hold zero, so no masks are needed.
+// Auto picks GridStencil for grids and Gather otherwise (the faster general strategy
+// on this machine; see docs/benchmarks.md).
+//
+// All scratch buffers are sized in the constructor; accelerations() never allocates.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "weft/core/parallel.hpp"
+#include "weft/model/model.hpp"
+
+namespace weft {
+
+enum class ForceStrategy { Auto, Gather, Coloured, GridStencil };
+const char* forceStrategyName(ForceStrategy s);
+/// Parses "auto", "gather", "coloured" (or "colored"), "grid" / "grid-stencil"; throws
+/// std::invalid_argument naming the value otherwise.
+ForceStrategy parseForceStrategy(const std::string& name);
+
+template <class S>
+class ForceField {
+ public:
+  /// `model` must outlive the ForceField. gravity in m/s^2. Throws std::invalid_argument
+  /// if GridStencil is requested for a model without a grid layout.
+  ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity);
+
+  /// a = accelerations at positions x and velocities v (all n x 3).
+  void accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+
+  ForceStrategy strategy() const { return strategy_; }
+  const Model<S>& model() const { return *model_; }
+  /// Colours used by the Coloured strategy (0 for the others).
+  Index colourCount() const { return colourOffsets_.empty() ? 0 : static_cast<Index>(colourOffsets_.size()) - 1; }
+  /// Spring evaluations per call of accelerations() (each spring once, every strategy).
+  Index springEvaluations() const { return model_->springCount(); }
+
+  /// Grain sizes (items per parallel block). Fixed numbers: the block boundaries, and so
+  /// the results, do not depend on the thread count.
+  static constexpr Index kSpringGrain = 4096;
+  static constexpr Index kParticleGrain = 1024;
+
+ private:
+  void gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+  void colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+  void stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+
+  const Model<S>* model_;
+  ForceStrategy strategy_;
+  S gx_, gy_, gz_;
+
+  // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
+  // meaning the particle is endpoint b and takes -f).
+  Vec3Array<S> springForce_;      // (m x 3) force on endpoint a, N
+  IndexArray incidenceOffsets_;   // (n + 1)
+  IndexArray incidence_;          // (2m)
+
+  // Coloured: springs permuted into colour order, as SoA.
+  std::vector<Index> colourOffsets_;  // (colours + 1) ranges into the permuted arrays
+  IndexArray colA_, colB_;
+  ScalarArray<S> colRest_, colKs_, colKd_;
+  Vec3Array<S> force_;  // (n x 3) accumulated force, N
+
+  // GridStencil: one (pad + n) x 3 force array per family, indexed by first endpoint.
+  std::vector<Vec3Array<S>> familyForce_;
+  std::vector<Index> familyOffset_;  // index offset b - a of each family
+  Index stencilPad_ = 0;
+};
+
+extern template class ForceField<float>;
+extern template class ForceField<double>;
+
+}  // namespace weft

@@ -1,0 +1,106 @@
+// weft/model/model.hpp — what a step only reads.
+//
+// Design note
+// -----------
+// A Model is the immutable description of a mass-spring system: per-particle masses
+// (inverse mass 0 = pinned), and the springs as structure-of-arrays (endpoints, rest
+// length, stiffness, damping, class). It is built once by a ModelBuilder (which
+// validates every input) and never changes afterwards, so any number of States and
+// Simulations may share it read-only across threads.
+//
+// Springs from the cloth-grid builder also carry a GridLayout: the grid's width and
+// height and, per spring family (a fixed neighbour offset such as "right neighbour" or
+// "two rows down"), the family's uniform rest length, stiffness and damping. The
+// GridStencil force strategy uses it to evaluate springs with contiguous loads only.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "weft/core/types.hpp"
+
+namespace weft {
+
+/// What a spring stands for in the cloth model (the seed's "interleaved" springs are
+/// Bend). Used for per-class materials and counts; the force law is the same for all.
+enum class SpringClass : std::uint8_t { Structural = 0, Shear = 1, Bend = 2 };
+inline constexpr int kSpringClassCount = 3;
+const char* springClassName(SpringClass c);
+
+/// Material of a spring: Hooke stiffness ks (N/m) and damping kd (N s/m) of the
+/// Witkin/Baraff damped spring.
+struct SpringMaterial {
+  double stiffness = 0;  // ks, N/m, >= 0
+  double damping = 0;    // kd, N s/m, >= 0
+};
+
+/// Springs as structure of arrays; entry s is one spring between particles a[s], b[s].
+template <class S>
+struct Springs {
+  IndexArray a;                  // (m) first endpoint
+  IndexArray b;                  // (m) second endpoint
+  ScalarArray<S> restLength;     // (m) r, m
+  ScalarArray<S> stiffness;      // (m) ks, N/m
+  ScalarArray<S> damping;        // (m) kd, N s/m
+  std::vector<SpringClass> kind;  // (m) class, cold data (counts, materials)
+
+  Index count() const { return static_cast<Index>(a.rows()); }
+};
+
+/// One family of a regular grid's springs: every particle (r, c) with (r + rowOffset,
+/// c + columnOffset) inside the grid is joined to it, with the same parameters.
+template <class S>
+struct GridFamily {
+  int rowOffset = 0;     // dr >= 0
+  int columnOffset = 0;  // dc, may be negative (the anti-diagonal shear spring)
+  S restLength = 0;      // m
+  S stiffness = 0;       // N/m
+  S damping = 0;         // N s/m
+  Index firstSpring = 0;  // the family's springs are springs [firstSpring, firstSpring + springCount)
+  Index springCount = 0;
+};
+
+/// Regular-grid description of a model built by buildClothGrid: particle (r, c) is
+/// index r * width + c.
+template <class S>
+struct GridLayout {
+  Index width = 0;
+  Index height = 0;
+  std::vector<GridFamily<S>> families;
+};
+
+template <class S>
+class ModelBuilder;
+
+template <class S>
+class Model {
+ public:
+  Model() = default;
+
+  Index particleCount() const { return static_cast<Index>(mass_.rows()); }
+  Index springCount() const { return springs_.count(); }
+
+  const ScalarArray<S>& mass() const { return mass_; }                // (n) kg
+  const ScalarArray<S>& inverseMass() const { return inverseMass_; }  // (n) 1/kg, 0 = pinned
+  bool isPinned(Index i) const { return inverseMass_[i] == S(0); }
+  Index pinnedCount() const;
+  const Springs<S>& springs() const { return springs_; }
+  /// Number of springs of each class.
+  std::array<Index, kSpringClassCount> springCountByClass() const;
+  /// Present for models built as a regular grid (enables the GridStencil strategy).
+  const std::optional<GridLayout<S>>& grid() const { return grid_; }
+
+ private:
+  friend class ModelBuilder<S>;
+  ScalarArray<S> mass_;
+  ScalarArray<S> inverseMass_;
+  Springs<S> springs_;
+  std::optional<GridLayout<S>> grid_;
+};
+
+extern template class Model<float>;
+extern template class Model<double>;
+
+}  // namespace weft

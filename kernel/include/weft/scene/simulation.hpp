@@ -1,0 +1,91 @@
+// weft/scene/simulation.hpp — a model, a state and the step assembled for them.
+//
+// Design note
+// -----------
+// Simulation is the embedding API. It owns the State, shares the (immutable) Model, and
+// holds what the step needs, all sized at construction: the ForceField (active force
+// terms and the parallel strategy), the Integrator and its stage buffers, the next-state
+// buffers and the StabilityCheck. A step is
+//
+//     integrator.advance(x, v) -> (x', v')   (each stage: forces -> accelerations -> combination)
+//     check (x', v')                          finite? no spring beyond maxStretch?
+//     ok: swap (x', v') in, t += dt           failure: keep (x, v), return the status
+//
+// so instability is reported as a status naming the first bad particle and the state is
+// never overwritten with NaN. A failed simulation refuses to step until the time step is
+// changed (setTimeStep) or a state is set (setState). step() never allocates and never
+// throws for physical events; constructors and setters throw std::invalid_argument for
+// bad parameters. Work runs in the caller's tbb::task_arena when one is given.
+#pragma once
+
+#include <memory>
+
+#include "weft/integrate/integrator.hpp"
+#include "weft/integrate/stability.hpp"
+#include "weft/model/builder.hpp"
+
+namespace weft {
+
+struct SimulationOptions {
+  IntegratorKind integrator = IntegratorKind::Rk4;
+  double dt = 1e-3;                   // fixed time step, s (> 0)
+  int threads = 0;                    // arena size when weft owns the arena (0 = all cores)
+  tbb::task_arena* arena = nullptr;   // the embedding program's arena (then `threads` is ignored)
+  ForceStrategy forceStrategy = ForceStrategy::Auto;
+  Vec3d gravity{0, -9.81, 0};         // m/s^2
+  StabilityOptions stability;
+};
+
+template <class S>
+class Simulation {
+ public:
+  Simulation(std::shared_ptr<const Model<S>> model, State<S> initial, const SimulationOptions& options);
+  Simulation(ModelAndState<S> built, const SimulationOptions& options);
+  ~Simulation();
+
+  /// Advances one fixed step. On failure the state is unchanged and the status says why.
+  StepStatus step();
+  /// Advances up to `steps` steps; stops at the first failure and returns its status.
+  StepStatus run(Index steps);
+
+  const Model<S>& model() const { return *model_; }
+  const State<S>& state() const { return state_; }
+  /// Replaces the state (same particle count) and clears a failure.
+  void setState(const State<S>& state);
+  double timeStep() const { return options_.dt; }
+  /// Changes the fixed step (> 0) and clears a failure.
+  void setTimeStep(double dt);
+
+  const SimulationOptions& options() const { return options_; }
+  IntegratorKind integrator() const { return options_.integrator; }
+  ForceStrategy forceStrategy() const { return forces_.strategy(); }
+  int threadCount() const { return executor_->threadCount(); }
+  const Executor& executor() const { return *executor_; }
+
+  /// Status of the last step (Ok until a step fails).
+  const StepStatus& status() const { return status_; }
+  Index stepCount() const { return stepCount_; }
+  /// Work of the last step, and the total over all steps.
+  const StepWork& lastWork() const { return lastWork_; }
+  std::int64_t forceEvaluations() const { return forceEvaluations_; }
+
+ private:
+  std::shared_ptr<const Model<S>> model_;
+  State<S> state_;
+  SimulationOptions options_;
+  std::unique_ptr<Executor> executor_;
+  ForceField<S> forces_;
+  std::unique_ptr<Integrator<S>> integrator_;
+  StabilityCheck<S> stability_;
+  Vec3Array<S> nextX_;  // (n x 3) candidate positions, m
+  Vec3Array<S> nextV_;  // (n x 3) candidate velocities, m/s
+  StepStatus status_;
+  StepWork lastWork_;
+  Index stepCount_ = 0;
+  std::int64_t forceEvaluations_ = 0;
+};
+
+extern template class Simulation<float>;
+extern template class Simulation<double>;
+
+}  // namespace weft

@@ -1,0 +1,9 @@
+// weft/weft.hpp — the embedding API in one include.
+#pragma once
+
+#include "weft/core/parallel.hpp"
+#include "weft/core/state.hpp"
+#include "weft/model/builder.hpp"
+#include "weft/model/builders.hpp"
+#include "weft/scene/builtin_scenes.hpp"
+#include "weft/scene/simulation.hpp"

@@ -1,0 +1,121 @@
+#include "weft/model/builders.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace weft {
+
+namespace {
+
+Vec3d normalised(const Vec3d& v, const char* field) {
+  const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+  if (!(std::isfinite(len) && len > 0))
+    throw std::invalid_argument(std::string(field) + " must be a finite non-zero vector");
+  return {v.x / len, v.y / len, v.z / len};
+}
+
+void requirePositive(const char* field, double value) {
+  if (!(std::isfinite(value) && value > 0))
+    throw std::invalid_argument(std::string(field) + " must be finite and > 0, got " + std::to_string(value));
+}
+
+}  // namespace
+
+std::array<Index, kSpringClassCount> expectedGridSpringCounts(const ClothGridSpec& spec) {
+  const Index w = spec.width, h = spec.height;
+  std::array<Index, kSpringClassCount> counts{};
+  counts[0] = (w - 1) * h + w * (h - 1);
+  counts[1] = spec.shearSprings ? 2 * (w - 1) * (h - 1) : 0;
+  counts[2] = spec.bendSprings ? std::max<Index>(w - 2, 0) * h + w * std::max<Index>(h - 2, 0) : 0;
+  return counts;
+}
+
+template <class S>
+void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
+  if (spec.particleCount < 2)
+    throw std::invalid_argument("RopeSpec.particleCount must be >= 2, got " + std::to_string(spec.particleCount));
+  requirePositive("RopeSpec.length", spec.length);
+  requirePositive("RopeSpec.totalMass", spec.totalMass);
+  const Vec3d d = normalised(spec.direction, "RopeSpec.direction");
+  const Index n = spec.particleCount;
+  const Index first = builder.particleCount();
+  const double step = spec.length / static_cast<double>(n - 1);
+  const double m = spec.totalMass / static_cast<double>(n);
+  for (Index i = 0; i < n; ++i) {
+    const double t = step * static_cast<double>(i);
+    builder.addParticle({spec.origin.x + t * d.x, spec.origin.y + t * d.y, spec.origin.z + t * d.z}, m);
+  }
+  for (Index i = 0; i + 1 < n; ++i)
+    builder.addSpring(first + i, first + i + 1, spec.structural, SpringClass::Structural, step);
+  if (spec.bendSprings)
+    for (Index i = 0; i + 2 < n; ++i)
+      builder.addSpring(first + i, first + i + 2, spec.bend, SpringClass::Bend, 2 * step);
+}
+
+template <class S>
+void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
+  if (spec.width < 2) throw std::invalid_argument("ClothGridSpec.width must be >= 2, got " + std::to_string(spec.width));
+  if (spec.height < 2)
+    throw std::invalid_argument("ClothGridSpec.height must be >= 2, got " + std::to_string(spec.height));
+  if (builder.particleCount() != 0)
+    throw std::invalid_argument("addClothGrid: the builder must be empty (the grid layout indexes from particle 0)");
+  requirePositive("ClothGridSpec.spacing", spec.spacing);
+  requirePositive("ClothGridSpec.totalMass", spec.totalMass);
+  const Vec3d u = normalised(spec.rowAxis, "ClothGridSpec.rowAxis");
+  const Vec3d w = normalised(spec.columnAxis, "ClothGridSpec.columnAxis");
+  const Index W = spec.width, H = spec.height;
+  const double m = spec.totalMass / static_cast<double>(W * H);
+  for (Index r = 0; r < H; ++r)
+    for (Index c = 0; c < W; ++c) {
+      const double a = spec.spacing * static_cast<double>(c), b = spec.spacing * static_cast<double>(r);
+      builder.addParticle({spec.origin.x + a * u.x + b * w.x, spec.origin.y + a * u.y + b * w.y,
+                           spec.origin.z + a * u.z + b * w.z},
+                          m);
+    }
+
+  // Rest lengths come from the lattice (not from the possibly skewed axes' positions),
+  // so every spring of a family has exactly the same parameters.
+  struct FamilySpec {
+    int dr, dc;
+    SpringClass kind;
+    const SpringMaterial* material;
+    double rest;
+  };
+  const double h = spec.spacing;
+  std::vector<FamilySpec> families = {{0, 1, SpringClass::Structural, &spec.structural, h},
+                                      {1, 0, SpringClass::Structural, &spec.structural, h}};
+  if (spec.shearSprings) {
+    families.push_back({1, 1, SpringClass::Shear, &spec.shear, h * std::sqrt(2.0)});
+    families.push_back({1, -1, SpringClass::Shear, &spec.shear, h * std::sqrt(2.0)});
+  }
+  if (spec.bendSprings) {
+    families.push_back({0, 2, SpringClass::Bend, &spec.bend, 2 * h});
+    families.push_back({2, 0, SpringClass::Bend, &spec.bend, 2 * h});
+  }
+  GridLayout<S> layout;
+  layout.width = W;
+  layout.height = H;
+  for (const FamilySpec& f : families) {
+    GridFamily<S> g;
+    g.rowOffset = f.dr;
+    g.columnOffset = f.dc;
+    g.restLength = static_cast<S>(f.rest);
+    g.stiffness = static_cast<S>(f.material->stiffness);
+    g.damping = static_cast<S>(f.material->damping);
+    g.firstSpring = builder.springCount();
+    for (Index r = 0; r + f.dr < H; ++r)
+      for (Index c = std::max(0, -f.dc); c < std::min(W, W - f.dc); ++c)
+        builder.addSpring(r * W + c, (r + f.dr) * W + c + f.dc, *f.material, f.kind, f.rest);
+    g.springCount = builder.springCount() - g.firstSpring;
+    if (g.springCount > 0) layout.families.push_back(g);
+  }
+  builder.setGridLayout(std::move(layout));
+}
+
+template void addRope(ModelBuilder<float>&, const RopeSpec&);
+template void addRope(ModelBuilder<double>&, const RopeSpec&);
+template void addClothGrid(ModelBuilder<float>&, const ClothGridSpec&);
+template void addClothGrid(ModelBuilder<double>&, const ClothGridSpec&);
+
+}  // namespace weft

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package weft's build, tests, benchmarks and tools need.
+# Run as root (or with sudo available). Idempotent: prints nothing when all is there.
+set -euo pipefail
+
+packages=(
+  g++ cmake make pkg-config        # toolchain (C++20, CMake >= 3.25)
+  libeigen3-dev                    # Eigen 3.4: SoA storage and vector expressions
+  libtbb-dev                       # oneTBB: task_arena + parallel_for
+  libgtest-dev libgmock-dev        # GoogleTest
+  libbenchmark-dev                 # Google Benchmark
+  libcli11-dev                     # CLI11: command-line parsing for `weft`
+  nlohmann-json3-dev               # JSON output of `weft run --json`
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
+    missing+=("$p")
+  fi
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "weft setup: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "weft setup: done"

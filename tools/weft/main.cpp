@@ -1,0 +1,60 @@
+// The `weft` command line. Parsing is CLI11's (Debian libcli11-dev); every bad option
+// exits non-zero with a message naming the option and the value.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <iostream>
+#include <string>
+#include <stdexcept>
+
+#include "run_command.hpp"
+
+namespace {
+// CLI::PositiveNumber lets "nan" through; a time step must be a finite positive number.
+const CLI::Validator finitePositive(
+    [](std::string& text) -> std::string {
+      double value = 0;
+      try {
+        size_t used = 0;
+        value = std::stod(text, &used);
+        if (used != text.size()) return "'" + text + "' is not a number";
+      } catch (const std::exception&) {
+        return "'" + text + "' is not a number";
+      }
+      if (!(std::isfinite(value) && value > 0)) return "must be a finite number > 0, got " + text;
+      return {};
+    },
+    "FINITE > 0");
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"weft — multithreaded cloth and collision kernel"};
+  app.require_subcommand(1);
+  weftcli::RunOptions run;
+  CLI::App* cmd = app.add_subcommand("run", "Run a built-in scene and print its figures");
+  cmd->add_option("scene", run.scene, "Scene: flag (64 x 64 cloth pinned at two corners) or rope")
+      ->check(CLI::IsMember({"flag", "rope"}));
+  cmd->add_option("--size", run.size, "Grid side (flag) or particle count (rope); default 64")
+      ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
+  cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")
+      ->check(finitePositive);
+  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4")
+      ->check(CLI::IsMember({"euler", "symplectic", "midpoint", "rk4"}));
+  cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
+  cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+  cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")
+      ->check(CLI::IsMember({"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
+  cmd->add_flag("--json", run.json, "Print exactly one JSON object instead of the summary");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    return weftcli::runScene(run);
+  } catch (const std::exception& e) {
+    std::cerr << "weft: " << e.what() << "\n";
+    return 2;
+  }
+}

@@ -1,0 +1,134 @@
+#include "run_command.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "weft/weft.hpp"
+
+namespace weftcli {
+
+namespace {
+
+double peakResidentMegabytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+std::string hex(std::uint64_t h) {
+  char buffer[19];
+  std::snprintf(buffer, sizeof buffer, "0x%016llx", static_cast<unsigned long long>(h));
+  return buffer;
+}
+
+template <class S>
+struct Energy {
+  double kinetic = 0, spring = 0, gravity = 0;
+};
+
+template <class S>
+Energy<S> energy(const weft::Model<S>& model, const weft::State<S>& state, const weft::Vec3d& g) {
+  Energy<S> e;
+  for (weft::Index i = 0; i < model.particleCount(); ++i) {
+    const double m = model.mass()[i];
+    const double v2 = static_cast<double>(state.v.row(i).squaredNorm());
+    e.kinetic += 0.5 * m * v2;
+    if (!model.isPinned(i))
+      e.gravity -= m * (g.x * double(state.x(i, 0)) + g.y * double(state.x(i, 1)) + g.z * double(state.x(i, 2)));
+  }
+  const auto& sp = model.springs();
+  for (weft::Index s = 0; s < sp.count(); ++s) {
+    const double len = static_cast<double>((state.x.row(sp.a[s]) - state.x.row(sp.b[s])).norm());
+    const double d = len - double(sp.restLength[s]);
+    e.spring += 0.5 * double(sp.stiffness[s]) * d * d;
+  }
+  return e;
+}
+
+template <class S>
+int run(const RunOptions& o) {
+  const weft::BuiltinScene scene = weft::parseBuiltinScene(o.scene);
+  const weft::Index size = o.size > 0 ? static_cast<weft::Index>(o.size) : weft::defaultSceneSize(scene);
+  weft::SimulationOptions options;
+  options.integrator = weft::parseIntegrator(o.integrator);
+  options.dt = o.dt > 0 ? o.dt : weft::defaultTimeStep(scene, size);
+  options.threads = o.threads;
+  options.forceStrategy = weft::parseForceStrategy(o.strategy);
+  weft::Simulation<S> sim(weft::makeBuiltinScene<S>(scene, size), options);
+
+  const auto start = std::chrono::steady_clock::now();
+  const weft::StepStatus status = sim.run(static_cast<weft::Index>(o.steps));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  const weft::Model<S>& model = sim.model();
+  const weft::State<S>& state = sim.state();
+  const std::int64_t done = sim.stepCount();
+  const double stepsPerSecond = wall > 0 ? static_cast<double>(done) / wall : 0;
+  const double springEvals = static_cast<double>(sim.forceEvaluations()) * model.springCount();
+  const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
+  const std::string hash = hex(weft::stateHash(state));
+  const auto byClass = model.springCountByClass();
+  const Energy<S> e = energy(model, state, options.gravity);
+  const double lowest = static_cast<double>(state.x.col(1).minCoeff());
+
+  if (o.json) {
+    nlohmann::ordered_json j;
+    j["scene"] = o.scene;
+    j["particles"] = model.particleCount();
+    j["springs"] = model.springCount();
+    j["springs_by_class"] = {{"structural", byClass[0]}, {"shear", byClass[1]}, {"bend", byClass[2]}};
+    j["integrator"] = weft::integratorName(options.integrator);
+    j["precision"] = o.precision;
+    j["threads"] = sim.threadCount();
+    j["force_strategy"] = weft::forceStrategyName(sim.forceStrategy());
+    j["steps"] = done;
+    j["steps_requested"] = o.steps;
+    j["dt"] = options.dt;
+    j["simulated_seconds"] = state.time;
+    j["wall_seconds"] = wall;
+    j["steps_per_second"] = stepsPerSecond;
+    j["spring_evals_per_second"] = springEvalsPerSecond;
+    j["force_evaluations"] = sim.forceEvaluations();
+    j["status"] = weft::stepCodeName(status.code);
+    if (!status.ok()) j["status_message"] = status.message();
+    j["state_hash"] = hash;
+    j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
+    j["lowest_y"] = lowest;
+    j["peak_rss_mb"] = peakResidentMegabytes();
+    std::cout << j.dump() << std::endl;
+  } else {
+    std::ostringstream out;
+    out.precision(6);
+    out << "weft run " << o.scene << "\n"
+        << "  model        " << model.particleCount() << " particles (" << model.pinnedCount() << " pinned), "
+        << model.springCount() << " springs (structural " << byClass[0] << ", shear " << byClass[1] << ", bend "
+        << byClass[2] << ")\n"
+        << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt "
+        << options.dt << " s, " << sim.threadCount() << " thread(s), forces: "
+        << weft::forceStrategyName(sim.forceStrategy()) << "\n"
+        << "  steps        " << done << " of " << o.steps << " (" << state.time << " s simulated)\n"
+        << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
+        << " M spring evaluations/s\n"
+        << "  energy       kinetic " << e.kinetic << " J, spring " << e.spring << " J, gravity " << e.gravity
+        << " J; lowest point y = " << lowest << " m\n"
+        << "  status       " << (status.ok() ? std::string("ok") : status.message()) << "\n"
+        << "  state hash   " << hash << "\n"
+        << "  peak memory  " << peakResidentMegabytes() << " MB resident\n";
+    std::cout << out.str();
+  }
+  return status.ok() ? 0 : 3;
+}
+
+}  // namespace
+
+int runScene(const RunOptions& options) {
+  return options.precision == "float" ? run<float>(options) : run<double>(options);
+}
+
+}  // namespace weftcli

@@ -1,0 +1,25 @@
+// `weft run`: run a built-in scene and summarise it.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace weftcli {
+
+struct RunOptions {
+  std::string scene = "flag";
+  std::int64_t size = 0;  // 0: the scene's default
+  std::int64_t steps = 2000;
+  double dt = 0;  // 0: the scene's default
+  std::string integrator = "rk4";
+  std::string precision = "double";
+  int threads = 0;
+  std::string strategy = "auto";
+  bool json = false;
+};
+
+/// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
+/// 0 when every step succeeded, 3 when the stability check stopped the run.
+int runScene(const RunOptions& options);
+
+}  // namespace weftcli
