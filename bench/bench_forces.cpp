@@ -36,8 +36,8 @@ void sizesAndThreads(benchmark::internal::Benchmark* b) {
 }
 
 using weft::ForceStrategy;
-#define WEFT_FORCES(NAME, S, STRATEGY)                                    \
-  void NAME(benchmark::State& st) { BM_Forces<S, STRATEGY>(st); }       \
+#define WEFT_FORCES(NAME, S, STRATEGY)                            \
+  void NAME(benchmark::State& st) { BM_Forces<S, STRATEGY>(st); } \
   BENCHMARK(NAME)->Apply(sizesAndThreads)
 
 WEFT_FORCES(BM_Forces_Gather_float, float, ForceStrategy::Gather);

@@ -49,8 +49,8 @@ void integratorArgs(benchmark::internal::Benchmark* b) {
 }
 
 using weft::IntegratorKind;
-#define WEFT_INTEGRATOR(NAME, S, KIND)                                      \
-  void NAME(benchmark::State& st) { BM_Integrator<S, KIND>(st); }         \
+#define WEFT_INTEGRATOR(NAME, S, KIND)                            \
+  void NAME(benchmark::State& st) { BM_Integrator<S, KIND>(st); } \
   BENCHMARK(NAME)->Apply(integratorArgs)
 
 WEFT_INTEGRATOR(BM_Integrator_Euler_float, float, IntegratorKind::ExplicitEuler);

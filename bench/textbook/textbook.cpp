@@ -13,7 +13,8 @@ Cloth::Cloth(const weft::Model<double>& model, const weft::State<double>& state,
     particles_.push_back(p);
   }
   const auto& s = model.springs();
-  for (int k = 0; k < s.count(); ++k) springs_.push_back({s.a[k], s.b[k], s.restLength[k], s.stiffness[k], s.damping[k]});
+  for (int k = 0; k < s.count(); ++k)
+    springs_.push_back({s.a[k], s.b[k], s.restLength[k], s.stiffness[k], s.damping[k]});
 }
 
 void Cloth::computeForces(std::vector<Particle>& p) const {

@@ -20,8 +20,18 @@ struct Vec3 {
   Vec3 operator-(const Vec3& o) const { return {x - o.x, y - o.y, z - o.z}; }
   Vec3 operator*(double s) const { return {x * s, y * s, z * s}; }
   Vec3 operator/(double s) const { return {x / s, y / s, z / s}; }
-  Vec3& operator+=(const Vec3& o) { x += o.x; y += o.y; z += o.z; return *this; }
-  Vec3& operator-=(const Vec3& o) { x -= o.x; y -= o.y; z -= o.z; return *this; }
+  Vec3& operator+=(const Vec3& o) {
+    x += o.x;
+    y += o.y;
+    z += o.z;
+    return *this;
+  }
+  Vec3& operator-=(const Vec3& o) {
+    x -= o.x;
+    y -= o.y;
+    z -= o.z;
+    return *this;
+  }
   double dot(const Vec3& o) const { return x * o.x + y * o.y + z * o.z; }
   double length() const { return std::sqrt(dot(*this)); }
 };
@@ -34,7 +44,7 @@ struct Particle {
 
 struct Spring {
   int a = 0, b = 0;
-  double r = 0;          // rest length
+  double r = 0;  // rest length
   double ks = 0, kd = 0;
 };
 

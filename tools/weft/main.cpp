@@ -3,8 +3,8 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <iostream>
-#include <string>
 #include <stdexcept>
+#include <string>
 
 #include "run_command.hpp"
 
@@ -36,8 +36,7 @@ int main(int argc, char** argv) {
   cmd->add_option("--size", run.size, "Grid side (flag) or particle count (rope); default 64")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
-  cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")
-      ->check(finitePositive);
+  cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
   cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4")
       ->check(CLI::IsMember({"euler", "symplectic", "midpoint", "rk4"}));
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
@@ -49,7 +48,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the message (naming the option and the value); bad input exits 2,
+    // --help exits 0.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   try {
     return weftcli::runScene(run);

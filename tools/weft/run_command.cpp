@@ -109,9 +109,8 @@ int run(const RunOptions& o) {
         << "  model        " << model.particleCount() << " particles (" << model.pinnedCount() << " pinned), "
         << model.springCount() << " springs (structural " << byClass[0] << ", shear " << byClass[1] << ", bend "
         << byClass[2] << ")\n"
-        << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt "
-        << options.dt << " s, " << sim.threadCount() << " thread(s), forces: "
-        << weft::forceStrategyName(sim.forceStrategy()) << "\n"
+        << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt " << options.dt
+        << " s, " << sim.threadCount() << " thread(s), forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
         << "  steps        " << done << " of " << o.steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"

@@ -10,10 +10,14 @@ namespace weft {
 
 const char* forceStrategyName(ForceStrategy s) {
   switch (s) {
-    case ForceStrategy::Auto: return "auto";
-    case ForceStrategy::Gather: return "gather";
-    case ForceStrategy::Coloured: return "coloured";
-    case ForceStrategy::GridStencil: return "grid-stencil";
+    case ForceStrategy::Auto:
+      return "auto";
+    case ForceStrategy::Gather:
+      return "gather";
+    case ForceStrategy::Coloured:
+      return "coloured";
+    case ForceStrategy::GridStencil:
+      return "grid-stencil";
   }
   return "unknown";
 }
@@ -34,10 +38,11 @@ namespace {
 
 // Springs [b, e) with endpoint index arrays: force on endpoint a into f[s].
 template <class S>
-[[gnu::noinline]] void springsIndexed(Index b, Index e, const Index* __restrict A, const Index* __restrict B, const S* __restrict x,
-                    const S* __restrict y, const S* __restrict z, const S* __restrict vx, const S* __restrict vy,
-                    const S* __restrict vz, const S* __restrict rest, const S* __restrict ks, const S* __restrict kd,
-                    S* __restrict fx, S* __restrict fy, S* __restrict fz) {
+[[gnu::noinline]] void springsIndexed(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
+                                      const S* __restrict x, const S* __restrict y, const S* __restrict z,
+                                      const S* __restrict vx, const S* __restrict vy, const S* __restrict vz,
+                                      const S* __restrict rest, const S* __restrict ks, const S* __restrict kd,
+                                      S* __restrict fx, S* __restrict fy, S* __restrict fz) {
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
     dampedSpringForce(x[i] - x[j], y[i] - y[j], z[i] - z[j], vx[i] - vx[j], vy[i] - vy[j], vz[i] - vz[j], rest[s],
@@ -48,21 +53,26 @@ template <class S>
 // `count` springs of one grid family between particles i and i + offset, i = first + t,
 // written to f[t]; pointers already offset to the first particle.
 template <class S>
-[[gnu::noinline]] void springsStrided(Index count, Index offset, const S* __restrict x, const S* __restrict y, const S* __restrict z,
-                    const S* __restrict vx, const S* __restrict vy, const S* __restrict vz, S rest, S ks, S kd,
-                    S* __restrict fx, S* __restrict fy, S* __restrict fz) {
+[[gnu::noinline]] void springsStrided(Index count, Index offset, const S* __restrict x, const S* __restrict y,
+                                      const S* __restrict z, const S* __restrict vx, const S* __restrict vy,
+                                      const S* __restrict vz, S rest, S ks, S kd, S* __restrict fx, S* __restrict fy,
+                                      S* __restrict fz) {
   for (Index t = 0; t < count; ++t) {
     const Index j = t + offset;
-    dampedSpringForce(x[t] - x[j], y[t] - y[j], z[t] - z[j], vx[t] - vx[j], vy[t] - vy[j], vz[t] - vz[j], rest, ks,
-                      kd, fx[t], fy[t], fz[t]);
+    dampedSpringForce(x[t] - x[j], y[t] - y[j], z[t] - z[j], vx[t] - vx[j], vy[t] - vy[j], vz[t] - vz[j], rest, ks, kd,
+                      fx[t], fy[t], fz[t]);
   }
 }
 
-// a_i = w_i f_i + [w_i > 0] g over [0, count); pointers offset to the first particle.
+// a_i = w_i f_i + [w_i > 0] g over [0, count): exactly 0 for a pinned particle whenever its
+// force is finite. (A select on the whole result would be NaN-proof too, but GCC 12 then
+// sinks the family sums into a branch and stops vectorising the gather; a NaN force only
+// occurs in a step the stability check rejects, and its report skips pinned particles.)
+// Pointers offset to the first particle.
 template <class S>
-[[gnu::noinline]] void finishAccelerations(Index count, const S* __restrict w, const S* __restrict fx, const S* __restrict fy,
-                         const S* __restrict fz, S gx, S gy, S gz, S* __restrict ax, S* __restrict ay,
-                         S* __restrict az) {
+[[gnu::noinline]] void finishAccelerations(Index count, const S* __restrict w, const S* __restrict fx,
+                                           const S* __restrict fy, const S* __restrict fz, S gx, S gy, S gz,
+                                           S* __restrict ax, S* __restrict ay, S* __restrict az) {
   for (Index i = 0; i < count; ++i) {
     const S wi = w[i];
     const bool free = wi > S(0);
@@ -74,12 +84,43 @@ template <class S>
 
 // t[i] += f[i] - f[i - offset] over [0, count), the stencil gather of one family.
 template <class S>
-[[gnu::noinline]] void addFamily(Index count, Index offset, const S* __restrict fx, const S* __restrict fy, const S* __restrict fz,
-               S* __restrict tx, S* __restrict ty, S* __restrict tz) {
+[[gnu::noinline]] void addFamily(Index count, Index offset, const S* __restrict fx, const S* __restrict fy,
+                                 const S* __restrict fz, S* __restrict tx, S* __restrict ty, S* __restrict tz) {
   for (Index i = 0; i < count; ++i) {
     tx[i] += fx[i] - fx[i - offset];
     ty[i] += fy[i] - fy[i - offset];
     tz[i] += fz[i] - fz[i - offset];
+  }
+}
+
+// a_i = w_i sum_k (f_k[i] - f_k[i - offset_k]) + [w_i > 0] g over [0, count), K families
+// in one loop (K a compile-time constant so the family loop unrolls and the particle
+// loop vectorises); f pointers already offset to the first particle's window slot.
+template <class S, int K>
+[[gnu::noinline]] void gatherFamilies(Index count, const S* const* f, const Index* offsets, const S* __restrict w, S gx,
+                                      S gy, S gz, S* __restrict ax, S* __restrict ay, S* __restrict az) {
+  const S* __restrict fx[K];
+  const S* __restrict fy[K];
+  const S* __restrict fz[K];
+  Index o[K];
+  for (int k = 0; k < K; ++k) {
+    fx[k] = f[3 * k];
+    fy[k] = f[3 * k + 1];
+    fz[k] = f[3 * k + 2];
+    o[k] = offsets[k];
+  }
+  for (Index i = 0; i < count; ++i) {
+    S sx = 0, sy = 0, sz = 0;
+    for (int k = 0; k < K; ++k) {
+      sx += fx[k][i] - fx[k][i - o[k]];
+      sy += fy[k][i] - fy[k][i - o[k]];
+      sz += fz[k][i] - fz[k][i - o[k]];
+    }
+    const S wi = w[i];
+    const bool free = wi > S(0);
+    ax[i] = wi * sx + (free ? gx : S(0));
+    ay[i] = wi * sy + (free ? gy : S(0));
+    az[i] = wi * sz + (free ? gz : S(0));
   }
 }
 
@@ -104,8 +145,7 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
   const Index n = model.particleCount();
   const Index m = model.springCount();
   const Springs<S>& sp = model.springs();
-  if (strategy_ == ForceStrategy::Auto)
-    strategy_ = model.grid() ? ForceStrategy::GridStencil : ForceStrategy::Gather;
+  if (strategy_ == ForceStrategy::Auto) strategy_ = model.grid() ? ForceStrategy::GridStencil : ForceStrategy::Gather;
   if (strategy_ == ForceStrategy::GridStencil && !model.grid())
     throw std::invalid_argument("force strategy 'grid-stencil' needs a model built as a cloth grid");
 
@@ -178,32 +218,61 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
     }
     case ForceStrategy::GridStencil: {
       const GridLayout<S>& g = *model.grid();
-      stencilPad_ = 0;
       for (const GridFamily<S>& f : g.families) {
-        const Index offset = f.rowOffset * g.width + f.columnOffset;
-        familyOffset_.push_back(offset);
-        stencilPad_ = std::max(stencilPad_, offset);
+        familyOffset_.push_back(f.rowOffset * g.width + f.columnOffset);
+        maxRowOffset_ = std::max<Index>(maxRowOffset_, f.rowOffset);
       }
-      for (size_t k = 0; k < g.families.size(); ++k) familyForce_.push_back(Vec3Array<S>::Zero(stencilPad_ + n, 3));
+      // Rows per chunk: the chunk's window of family forces, (rows + halo) x width x
+      // families x 3 scalars, stays within L2 (about 300 KB in double at 2048 particles).
+      chunkRows_ = std::max<Index>(2, kStencilChunkParticles / g.width);
+      // Pad each array so consecutive ones start 5 cache lines apart modulo 4 KiB: the gather
+      // streams 36 of them at once, and at power-of-two strides they would all compete
+      // for the same L1 set (measured 2.3x slower at 256^2 in double).
+      const Index perLine = static_cast<Index>(64 / sizeof(S));
+      windowSize_ = (chunkRows_ + maxRowOffset_) * g.width;
+      windowSize_ = (windowSize_ + perLine - 1) / perLine * perLine;
+      const Index perPage = static_cast<Index>(4096 / sizeof(S));
+      windowSize_ += ((5 * perLine - windowSize_ % perPage) % perPage + perPage) % perPage;
+      const Index chunks = Executor::blockCount(g.height, chunkRows_);
+      // Zero once: slots without a spring are never written, so they stay zero.
+      stencilWindows_.assign(static_cast<size_t>(chunks) * g.families.size() * 3 * windowSize_, S(0));
       break;
     }
-    case ForceStrategy::Auto: break;
+    case ForceStrategy::Auto:
+      break;
   }
 }
 
 template <class S>
-void ForceField<S>::accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a,
+void ForceField<S>::accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                                   const Executor& exec) {
   switch (strategy_) {
-    case ForceStrategy::Gather: gatherForces(x, v, a, exec); break;
-    case ForceStrategy::Coloured: colouredForces(x, v, a, exec); break;
-    case ForceStrategy::GridStencil: stencilForces(x, v, a, exec); break;
-    case ForceStrategy::Auto: break;
+    case ForceStrategy::Gather:
+      gatherForces(x, v, sink, exec);
+      break;
+    case ForceStrategy::Coloured:
+      colouredForces(x, v, sink, exec);
+      break;
+    case ForceStrategy::GridStencil:
+      stencilForces(x, v, sink, exec);
+      break;
+    case ForceStrategy::Auto:
+      break;
   }
 }
 
 template <class S>
-void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a,
+void ForceField<S>::accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec) {
+  auto store = [&](Index b, Index count, const S* ax, const S* ay, const S* az) {
+    std::copy_n(ax, count, col(a, 0) + b);
+    std::copy_n(ay, count, col(a, 1) + b);
+    std::copy_n(az, count, col(a, 2) + b);
+  };
+  accelerations(x, v, makeSink<S>(store), exec);
+}
+
+template <class S>
+void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                                  const Executor& exec) {
   const Springs<S>& sp = model_->springs();
   exec.parallelFor(sp.count(), kSpringGrain, [&](Index b, Index e) {
@@ -211,16 +280,14 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, V
                    sp.restLength.data(), sp.stiffness.data(), sp.damping.data(), col(springForce_, 0),
                    col(springForce_, 1), col(springForce_, 2));
   });
-  exec.parallelFor(model_->particleCount(), kParticleGrain, [&](Index b, Index e) {
+  exec.parallelFor(model_->particleCount(), kSinkBlock, [&](Index b, Index e) {
     const Index* __restrict off = incidenceOffsets_.data();
     const Index* __restrict inc = incidence_.data();
     const S* __restrict w = model_->inverseMass().data();
     const S* __restrict Fx = col(springForce_, 0);
     const S* __restrict Fy = col(springForce_, 1);
     const S* __restrict Fz = col(springForce_, 2);
-    S* __restrict ax = col(a, 0);
-    S* __restrict ay = col(a, 1);
-    S* __restrict az = col(a, 2);
+    alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
     const S gx = gx_, gy = gy_, gz = gz_;
     for (Index i = b; i < e; ++i) {
       S fx = 0, fy = 0, fz = 0;
@@ -233,15 +300,16 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, V
       }
       const S wi = w[i];
       const bool free = wi > S(0);
-      ax[i] = wi * fx + (free ? gx : S(0));
-      ay[i] = wi * fy + (free ? gy : S(0));
-      az[i] = wi * fz + (free ? gz : S(0));
+      ax[i - b] = wi * fx + (free ? gx : S(0));
+      ay[i - b] = wi * fy + (free ? gy : S(0));
+      az[i - b] = wi * fz + (free ? gz : S(0));
     }
+    sink(b, e - b, ax, ay, az);
   });
 }
 
 template <class S>
-void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a,
+void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                                    const Executor& exec) {
   const Index n = model_->particleCount();
   exec.parallelFor(n, kParticleGrain, [&](Index b, Index e) { force_.middleRows(b, e - b).setZero(); });
@@ -253,9 +321,9 @@ void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v,
       const S* __restrict rest = colRest_.data();
       const S* __restrict ks = colKs_.data();
       const S* __restrict kd = colKd_.data();
-      const S *__restrict X = col(x, 0), *__restrict Y = col(x, 1), *__restrict Z = col(x, 2);
-      const S *__restrict VX = col(v, 0), *__restrict VY = col(v, 1), *__restrict VZ = col(v, 2);
-      S *__restrict FX = col(force_, 0), *__restrict FY = col(force_, 1), *__restrict FZ = col(force_, 2);
+      const S* __restrict X = col(x, 0), * __restrict Y = col(x, 1), * __restrict Z = col(x, 2);
+      const S* __restrict VX = col(v, 0), * __restrict VY = col(v, 1), * __restrict VZ = col(v, 2);
+      S* __restrict FX = col(force_, 0), * __restrict FY = col(force_, 1), * __restrict FZ = col(force_, 2);
       // Within a colour no two springs share a particle, so these scatters never collide.
       for (Index s = first + b; s < first + e; ++s) {
         const Index i = A[s], j = B[s];
@@ -272,54 +340,72 @@ void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v,
     });
   }
   const S* w = model_->inverseMass().data();
-  exec.parallelFor(n, kParticleGrain, [&](Index b, Index e) {
-    finishAccelerations(e - b, w + b, col(force_, 0) + b, col(force_, 1) + b, col(force_, 2) + b, gx_, gy_, gz_,
-                        col(a, 0) + b, col(a, 1) + b, col(a, 2) + b);
+  exec.parallelFor(n, kSinkBlock, [&](Index b, Index e) {
+    alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
+    finishAccelerations(e - b, w + b, col(force_, 0) + b, col(force_, 1) + b, col(force_, 2) + b, gx_, gy_, gz_, ax, ay,
+                        az);
+    sink(b, e - b, ax, ay, az);
   });
 }
 
 template <class S>
-void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a,
+void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                                   const Executor& exec) {
   const GridLayout<S>& g = *model_->grid();
-  const Index W = g.width, H = g.height, n = model_->particleCount();
+  const Index W = g.width, H = g.height;
   const Index familyCount = static_cast<Index>(g.families.size());
-  const Index pad = stencilPad_;
+  const Index halo = maxRowOffset_;
+  const S* w = model_->inverseMass().data();
 
-  // Pass 1: per family, the force of the spring whose first endpoint is particle i, into
-  // slot pad + i. Row blocks of about kSpringGrain springs (all families together).
-  const Index rowsPerBlock = std::max<Index>(1, kSpringGrain / std::max<Index>(1, W * familyCount));
-  exec.parallelFor(H, rowsPerBlock, [&](Index r0, Index r1) {
+  // One task per chunk of rows [r0, r1). Its window holds, per family and axis, the force
+  // of the spring starting at each particle of rows [r0 - halo, r1) (window row 0 is row
+  // r0 - halo). Springs starting in the halo rows are recomputed by this chunk rather than
+  // shared with the chunk above: the values are bitwise the same either way, so results do
+  // not depend on how chunks are scheduled, and the window never leaves this core's cache.
+  exec.parallelFor(H, chunkRows_, [&](Index r0, Index r1) {
+    S* window = stencilWindows_.data() + static_cast<size_t>(r0 / chunkRows_) * familyCount * 3 * windowSize_;
     for (Index k = 0; k < familyCount; ++k) {
       const GridFamily<S>& f = g.families[k];
       const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
-      Vec3Array<S>& Fk = familyForce_[k];
-      for (Index r = r0; r < std::min<Index>(r1, H - f.rowOffset); ++r) {
-        const Index i = r * W + c0;
-        springsStrided(c1 - c0, familyOffset_[k], col(x, 0) + i, col(x, 1) + i, col(x, 2) + i, col(v, 0) + i,
-                       col(v, 1) + i, col(v, 2) + i, f.restLength, f.stiffness, f.damping, col(Fk, 0) + pad + i,
-                       col(Fk, 1) + pad + i, col(Fk, 2) + pad + i);
-      }
+      // Halo rows r0 - j only matter to families reaching j rows down (dr >= j).
+      const Index first = std::max<Index>(0, r0 - f.rowOffset);
+      const Index last = std::min<Index>(r1, H - f.rowOffset);
+      if (first >= last) continue;
+      S* fc[3];
+      for (int c = 0; c < 3; ++c)
+        fc[c] = window + (k * 3 + c) * windowSize_ + (halo - r0) * W;  // slot of particle i: fc + i
+      // One flat run from (first, c0) to (last - 1, c1 - 1): a single vector loop instead
+      // of one short loop (and a scalar tail of square roots) per row. The run also
+      // evaluates the wrap-around pairs between rows; their slots are zeroed below.
+      const Index b = first * W + c0, e = (last - 1) * W + c1;
+      springsStrided(e - b, familyOffset_[k], col(x, 0) + b, col(x, 1) + b, col(x, 2) + b, col(v, 0) + b, col(v, 1) + b,
+                     col(v, 2) + b, f.restLength, f.stiffness, f.damping, fc[0] + b, fc[1] + b, fc[2] + b);
+      for (Index r = first + 1; r < last; ++r)
+        for (Index i = (r - 1) * W + c1; i < r * W + c0; ++i) fc[0][i] = fc[1][i] = fc[2][i] = S(0);
     }
-  });
-
-  // Pass 2: each particle sums +f over the springs it starts and -f over those it ends,
-  // family by family (a fixed order), in chunks that stay in L1; then a = w f + g.
-  const S* w = model_->inverseMass().data();
-  exec.parallelFor(n, kParticleGrain, [&](Index b, Index e) {
-    constexpr Index kChunk = 256;
-    alignas(64) S tx[kChunk], ty[kChunk], tz[kChunk];
-    for (Index c0 = b; c0 < e; c0 += kChunk) {
-      const Index len = std::min<Index>(kChunk, e - c0);
-      std::fill_n(tx, len, S(0));
-      std::fill_n(ty, len, S(0));
-      std::fill_n(tz, len, S(0));
-      for (Index k = 0; k < familyCount; ++k) {
-        const Vec3Array<S>& Fk = familyForce_[k];
-        addFamily(len, familyOffset_[k], col(Fk, 0) + pad + c0, col(Fk, 1) + pad + c0, col(Fk, 2) + pad + c0, tx, ty,
-                  tz);
+    // Gather: particle i (window slot p) takes +f_k[p] - f_k[p - offset_k], family by
+    // family (a fixed order); slots without a spring hold zero, including the ones a
+    // boundary column's p - offset_k wraps into. Then a = w f + g.
+    const Index i0 = r0 * W, p0 = halo * W;
+    alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
+    for (Index j0 = i0; j0 < r1 * W; j0 += kSinkBlock) {
+      const Index len = std::min<Index>(kSinkBlock, r1 * W - j0);
+      const Index p = j0 - i0 + p0;
+      if (familyCount == 6) {
+        const S* f[18];
+        for (Index c = 0; c < 18; ++c) f[c] = window + c * windowSize_ + p;
+        gatherFamilies<S, 6>(len, f, familyOffset_.data(), w + j0, gx_, gy_, gz_, ax, ay, az);
+      } else {  // grids without shear or bend springs
+        alignas(64) S tx[kSinkBlock], ty[kSinkBlock], tz[kSinkBlock];
+        std::fill_n(tx, len, S(0));
+        std::fill_n(ty, len, S(0));
+        std::fill_n(tz, len, S(0));
+        for (Index k = 0; k < familyCount; ++k)
+          addFamily(len, familyOffset_[k], window + (k * 3 + 0) * windowSize_ + p,
+                    window + (k * 3 + 1) * windowSize_ + p, window + (k * 3 + 2) * windowSize_ + p, tx, ty, tz);
+        finishAccelerations(len, w + j0, tx, ty, tz, gx_, gy_, gz_, ax, ay, az);
       }
-      finishAccelerations(len, w + c0, tx, ty, tz, gx_, gy_, gz_, col(a, 0) + c0, col(a, 1) + c0, col(a, 2) + c0);
+      sink(j0, len, ax, ay, az);
     }
   });
 }

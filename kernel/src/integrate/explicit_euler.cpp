@@ -9,26 +9,24 @@ namespace {
 template <class S>
 class ExplicitEuler final : public Integrator<S> {
  public:
-  explicit ExplicitEuler(Index n) : a_(n, 3) {}
   IntegratorKind kind() const override { return IntegratorKind::ExplicitEuler; }
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {
-    forces.accelerations(x0, v0, a_, exec);
-    forRowBlocks(exec, static_cast<Index>(x0.rows()), [&](Index b, Index len) {
-      x1.middleRows(b, len) = x0.middleRows(b, len) + h * v0.middleRows(b, len);
-      v1.middleRows(b, len) = v0.middleRows(b, len) + h * a_.middleRows(b, len);
-    });
+    auto combine = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+      for (int c = 0; c < 3; ++c) {
+        rows(x1, c, b, n) = rows(x0, c, b, n) + h * rows(v0, c, b, n);
+        rows(v1, c, b, n) = rows(v0, c, b, n) + h * accel(ax, ay, az, c, n);
+      }
+    };
+    forces.accelerations(x0, v0, makeSink<S>(combine), exec);
     return {1};
   }
-
- private:
-  Vec3Array<S> a_;  // (n x 3) accelerations, m/s^2
 };
 }  // namespace
 
 template <class S>
-std::unique_ptr<Integrator<S>> makeExplicitEuler(Index n) {
-  return std::make_unique<ExplicitEuler<S>>(n);
+std::unique_ptr<Integrator<S>> makeExplicitEuler(Index) {
+  return std::make_unique<ExplicitEuler<S>>();
 }
 template std::unique_ptr<Integrator<float>> makeExplicitEuler(Index);
 template std::unique_ptr<Integrator<double>> makeExplicitEuler(Index);

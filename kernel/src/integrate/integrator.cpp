@@ -8,10 +8,14 @@ namespace weft {
 
 const char* integratorName(IntegratorKind kind) {
   switch (kind) {
-    case IntegratorKind::ExplicitEuler: return "euler";
-    case IntegratorKind::SymplecticEuler: return "symplectic";
-    case IntegratorKind::Midpoint: return "midpoint";
-    case IntegratorKind::Rk4: return "rk4";
+    case IntegratorKind::ExplicitEuler:
+      return "euler";
+    case IntegratorKind::SymplecticEuler:
+      return "symplectic";
+    case IntegratorKind::Midpoint:
+      return "midpoint";
+    case IntegratorKind::Rk4:
+      return "rk4";
   }
   return "unknown";
 }
@@ -24,10 +28,14 @@ IntegratorKind parseIntegrator(const std::string& name) {
 
 int integratorOrder(IntegratorKind kind) {
   switch (kind) {
-    case IntegratorKind::ExplicitEuler: return 1;
-    case IntegratorKind::SymplecticEuler: return 1;
-    case IntegratorKind::Midpoint: return 2;
-    case IntegratorKind::Rk4: return 4;
+    case IntegratorKind::ExplicitEuler:
+      return 1;
+    case IntegratorKind::SymplecticEuler:
+      return 1;
+    case IntegratorKind::Midpoint:
+      return 2;
+    case IntegratorKind::Rk4:
+      return 4;
   }
   return 0;
 }
@@ -36,10 +44,14 @@ template <class S>
 std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particleCount) {
   if (particleCount < 0) throw std::invalid_argument("makeIntegrator: particleCount must be >= 0");
   switch (kind) {
-    case IntegratorKind::ExplicitEuler: return detail::makeExplicitEuler<S>(particleCount);
-    case IntegratorKind::SymplecticEuler: return detail::makeSymplecticEuler<S>(particleCount);
-    case IntegratorKind::Midpoint: return detail::makeMidpoint<S>(particleCount);
-    case IntegratorKind::Rk4: return detail::makeRk4<S>(particleCount);
+    case IntegratorKind::ExplicitEuler:
+      return detail::makeExplicitEuler<S>(particleCount);
+    case IntegratorKind::SymplecticEuler:
+      return detail::makeSymplecticEuler<S>(particleCount);
+    case IntegratorKind::Midpoint:
+      return detail::makeMidpoint<S>(particleCount);
+    case IntegratorKind::Rk4:
+      return detail::makeRk4<S>(particleCount);
   }
   throw std::invalid_argument("makeIntegrator: unknown integrator kind");
 }

@@ -9,27 +9,29 @@ namespace {
 template <class S>
 class Midpoint final : public Integrator<S> {
  public:
-  explicit Midpoint(Index n) : a_(n, 3), xm_(n, 3), vm_(n, 3) {}
+  explicit Midpoint(Index n) : xm_(n, 3), vm_(n, 3) {}
   IntegratorKind kind() const override { return IntegratorKind::Midpoint; }
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {
-    const Index n = static_cast<Index>(x0.rows());
     const S half = h / S(2);
-    forces.accelerations(x0, v0, a_, exec);
-    forRowBlocks(exec, n, [&](Index b, Index len) {
-      xm_.middleRows(b, len) = x0.middleRows(b, len) + half * v0.middleRows(b, len);
-      vm_.middleRows(b, len) = v0.middleRows(b, len) + half * a_.middleRows(b, len);
-    });
-    forces.accelerations(xm_, vm_, a_, exec);
-    forRowBlocks(exec, n, [&](Index b, Index len) {
-      x1.middleRows(b, len) = x0.middleRows(b, len) + h * vm_.middleRows(b, len);
-      v1.middleRows(b, len) = v0.middleRows(b, len) + h * a_.middleRows(b, len);
-    });
+    auto toMidpoint = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+      for (int c = 0; c < 3; ++c) {
+        rows(xm_, c, b, n) = rows(x0, c, b, n) + half * rows(v0, c, b, n);
+        rows(vm_, c, b, n) = rows(v0, c, b, n) + half * accel(ax, ay, az, c, n);
+      }
+    };
+    forces.accelerations(x0, v0, makeSink<S>(toMidpoint), exec);
+    auto fullStep = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+      for (int c = 0; c < 3; ++c) {
+        rows(x1, c, b, n) = rows(x0, c, b, n) + h * rows(vm_, c, b, n);
+        rows(v1, c, b, n) = rows(v0, c, b, n) + h * accel(ax, ay, az, c, n);
+      }
+    };
+    forces.accelerations(xm_, vm_, makeSink<S>(fullStep), exec);
     return {2};
   }
 
  private:
-  Vec3Array<S> a_;   // (n x 3) accelerations, m/s^2
   Vec3Array<S> xm_;  // (n x 3) midpoint positions, m
   Vec3Array<S> vm_;  // (n x 3) midpoint velocities, m/s
 };

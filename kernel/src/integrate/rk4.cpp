@@ -1,11 +1,13 @@
 // Classic fourth-order Runge-Kutta on (x, v):
-//   k1 = (v0,      a(x0, v0))
-//   k2 = (v2,      a(x2, v2)),  (x2, v2) = (x0, v0) + h/2 k1
-//   k3 = (v3,      a(x3, v3)),  (x3, v3) = (x0, v0) + h/2 k2
-//   k4 = (v4,      a(x4, v4)),  (x4, v4) = (x0, v0) + h   k3
+//   k1 = (v0, a(x0, v0))
+//   k2 = (v2, a(x2, v2)),  (x2, v2) = (x0, v0) + h/2 k1
+//   k3 = (v3, a(x3, v3)),  (x3, v3) = (x0, v0) + h/2 k2
+//   k4 = (v4, a(x4, v4)),  (x4, v4) = (x0, v0) + h   k3
 //   (x1, v1) = (x0, v0) + h/6 (k1 + 2 k2 + 2 k3 + k4)
-// The weighted sums are accumulated as the stages go, fused with forming the next stage
-// state, so a step is 4 force evaluations plus 4 streaming passes and 6 stage buffers.
+// Each stage's combination runs inside its force evaluation (an AccelerationSink): the
+// weighted sums accumulate and the next stage state is formed while the accelerations
+// are in L1. A sink may not write the state being evaluated, so stage states alternate
+// between two buffers (A, B): x0 -> A -> B -> A -> x1. 4 force evaluations, 4 passes.
 #include "row_blocks.hpp"
 
 namespace weft::detail {
@@ -14,47 +16,53 @@ namespace {
 template <class S>
 class Rk4 final : public Integrator<S> {
  public:
-  explicit Rk4(Index n) : a_(n, 3), xs_(n, 3), vs_(n, 3), sumV_(n, 3), sumA_(n, 3) {}
+  explicit Rk4(Index n) : xa_(n, 3), va_(n, 3), xb_(n, 3), vb_(n, 3), sumV_(n, 3), sumA_(n, 3) {}
   IntegratorKind kind() const override { return IntegratorKind::Rk4; }
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {
-    const Index n = static_cast<Index>(x0.rows());
     const S half = h / S(2);
     const S sixth = h / S(6);
-    // Stage 1.
-    forces.accelerations(x0, v0, a_, exec);
-    forRowBlocks(exec, n, [&](Index b, Index len) {
-      sumV_.middleRows(b, len) = v0.middleRows(b, len);
-      sumA_.middleRows(b, len) = a_.middleRows(b, len);
-      xs_.middleRows(b, len) = x0.middleRows(b, len) + half * v0.middleRows(b, len);
-      vs_.middleRows(b, len) = v0.middleRows(b, len) + half * a_.middleRows(b, len);
-    });
-    // Stages 2 and 3: k = (vs, a(xs, vs)); next stage at h/2, then at h.
-    for (int stage = 2; stage <= 3; ++stage) {
-      const S reach = stage == 2 ? half : h;
-      forces.accelerations(xs_, vs_, a_, exec);
-      forRowBlocks(exec, n, [&](Index b, Index len) {
-        sumV_.middleRows(b, len) += S(2) * vs_.middleRows(b, len);
-        sumA_.middleRows(b, len) += S(2) * a_.middleRows(b, len);
-        xs_.middleRows(b, len) = x0.middleRows(b, len) + reach * vs_.middleRows(b, len);
-        vs_.middleRows(b, len) = v0.middleRows(b, len) + reach * a_.middleRows(b, len);
-      });
-    }
-    // Stage 4 and the weighted combination.
-    forces.accelerations(xs_, vs_, a_, exec);
-    forRowBlocks(exec, n, [&](Index b, Index len) {
-      x1.middleRows(b, len) = x0.middleRows(b, len) + sixth * (sumV_.middleRows(b, len) + vs_.middleRows(b, len));
-      v1.middleRows(b, len) = v0.middleRows(b, len) + sixth * (sumA_.middleRows(b, len) + a_.middleRows(b, len));
-    });
+    auto stage1 = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+      for (int c = 0; c < 3; ++c) {
+        const auto a = accel(ax, ay, az, c, n);
+        rows(sumV_, c, b, n) = rows(v0, c, b, n);
+        rows(sumA_, c, b, n) = a;
+        rows(xa_, c, b, n) = rows(x0, c, b, n) + half * rows(v0, c, b, n);
+        rows(va_, c, b, n) = rows(v0, c, b, n) + half * a;
+      }
+    };
+    forces.accelerations(x0, v0, makeSink<S>(stage1), exec);
+    // Stages 2 and 3: k = (vs, a(xs, vs)) from buffer `from`; next stage state, at h/2
+    // then at h, into buffer `to`.
+    auto middle = [&](const Vec3Array<S>& xs, const Vec3Array<S>& vs, Vec3Array<S>& xt, Vec3Array<S>& vt, S reach) {
+      auto stage = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+        for (int c = 0; c < 3; ++c) {
+          const auto a = accel(ax, ay, az, c, n);
+          rows(sumV_, c, b, n) += S(2) * rows(vs, c, b, n);
+          rows(sumA_, c, b, n) += S(2) * a;
+          rows(xt, c, b, n) = rows(x0, c, b, n) + reach * rows(vs, c, b, n);
+          rows(vt, c, b, n) = rows(v0, c, b, n) + reach * a;
+        }
+      };
+      forces.accelerations(xs, vs, makeSink<S>(stage), exec);
+    };
+    middle(xa_, va_, xb_, vb_, half);
+    middle(xb_, vb_, xa_, va_, h);
+    auto stage4 = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
+      for (int c = 0; c < 3; ++c) {
+        rows(x1, c, b, n) = rows(x0, c, b, n) + sixth * (rows(sumV_, c, b, n) + rows(va_, c, b, n));
+        rows(v1, c, b, n) = rows(v0, c, b, n) + sixth * (rows(sumA_, c, b, n) + accel(ax, ay, az, c, n));
+      }
+    };
+    forces.accelerations(xa_, va_, makeSink<S>(stage4), exec);
     return {4};
   }
 
  private:
-  Vec3Array<S> a_;     // (n x 3) stage accelerations, m/s^2
-  Vec3Array<S> xs_;    // (n x 3) stage positions, m
-  Vec3Array<S> vs_;    // (n x 3) stage velocities, m/s
-  Vec3Array<S> sumV_;  // (n x 3) k1x + 2 k2x + 2 k3x, m/s
-  Vec3Array<S> sumA_;  // (n x 3) k1v + 2 k2v + 2 k3v, m/s^2
+  Vec3Array<S> xa_, va_;  // (n x 3) stage state A: positions m, velocities m/s
+  Vec3Array<S> xb_, vb_;  // (n x 3) stage state B
+  Vec3Array<S> sumV_;     // (n x 3) k1x + 2 k2x + 2 k3x, m/s
+  Vec3Array<S> sumA_;     // (n x 3) k1v + 2 k2v + 2 k3v, m/s^2
 };
 }  // namespace
 

@@ -1,15 +1,29 @@
-// Internal: the parallel pass used by every stage combination.
+// Internal: what the integrators share to combine stages block by block.
 #pragma once
 
 #include "weft/integrate/integrator.hpp"
 
 namespace weft::detail {
 
-/// Calls f(begin, length) over fixed row blocks of [0, n); f applies Eigen expressions
-/// to .middleRows(begin, length) of its (n x 3) buffers.
-template <class F>
-inline void forRowBlocks(const Executor& exec, Index n, F&& f) {
-  exec.parallelFor(n, Integrator<double>::kRowGrain, [&](Index b, Index e) { f(b, e - b); });
+template <class S>
+using Column = Eigen::Map<Eigen::Array<S, Eigen::Dynamic, 1>>;
+template <class S>
+using ConstColumn = Eigen::Map<const Eigen::Array<S, Eigen::Dynamic, 1>>;
+
+/// Axis c of rows [b, b + n) of an (n x 3) buffer, as an Eigen array (vectorised
+/// coefficient-wise expressions, no aliasing between distinct buffers).
+template <class S>
+Column<S> rows(Vec3Array<S>& m, int c, Index b, Index n) {
+  return Column<S>(m.data() + c * m.rows() + b, n);
+}
+template <class S>
+ConstColumn<S> rows(const Vec3Array<S>& m, int c, Index b, Index n) {
+  return ConstColumn<S>(m.data() + c * m.rows() + b, n);
+}
+/// The sink's accelerations of axis c.
+template <class S>
+ConstColumn<S> accel(const S* ax, const S* ay, const S* az, int c, Index n) {
+  return ConstColumn<S>(c == 0 ? ax : c == 1 ? ay : az, n);
 }
 
 template <class S>

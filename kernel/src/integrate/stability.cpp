@@ -1,19 +1,22 @@
 #include "weft/integrate/stability.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <type_traits>
-#include <algorithm>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
 namespace weft {
 
 const char* stepCodeName(StepCode code) {
   switch (code) {
-    case StepCode::Ok: return "ok";
-    case StepCode::NonFinite: return "non-finite";
-    case StepCode::Overstretched: return "overstretched";
+    case StepCode::Ok:
+      return "ok";
+    case StepCode::NonFinite:
+      return "non-finite";
+    case StepCode::Overstretched:
+      return "overstretched";
   }
   return "unknown";
 }
@@ -22,7 +25,9 @@ std::string StepStatus::message() const {
   std::ostringstream out;
   out.precision(6);
   switch (code) {
-    case StepCode::Ok: out << "ok"; break;
+    case StepCode::Ok:
+      out << "ok";
+      break;
     case StepCode::NonFinite:
       out << "non-finite state: particle " << particle << " has position or velocity " << value
           << " after the step starting at t = " << time << " s (reduce dt or use a more stable integrator)";
@@ -56,7 +61,7 @@ template <class S>
 // Any spring i -> i + offset, i in [0, count), longer than sqrt(limit2)?
 template <class S>
 [[gnu::noinline]] bool anyLongerStrided(Index count, Index offset, const S* __restrict x, const S* __restrict y,
-                                         const S* __restrict z, S limit2) {
+                                        const S* __restrict z, S limit2) {
   Flag<S> bad = 0;
   for (Index t = 0; t < count; ++t) {
     const S dx = x[t] - x[t + offset], dy = y[t] - y[t + offset], dz = z[t] - z[t + offset];
@@ -67,8 +72,8 @@ template <class S>
 
 template <class S>
 [[gnu::noinline]] bool anyLongerIndexed(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
-                                         const S* __restrict x, const S* __restrict y, const S* __restrict z,
-                                         const S* __restrict rest, S ratio2) {
+                                        const S* __restrict x, const S* __restrict y, const S* __restrict z,
+                                        const S* __restrict rest, S ratio2) {
   Flag<S> bad = 0;
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
@@ -87,7 +92,8 @@ StabilityCheck<S>::StabilityCheck(const Model<S>& model, const StabilityOptions&
   Index blocks = Executor::blockCount(n, kGrain);
   if (model.grid()) {
     const Index W = model.grid()->width, familyCount = static_cast<Index>(model.grid()->families.size());
-    blocks = std::max(blocks, Executor::blockCount(model.grid()->height, std::max<Index>(1, kGrain / std::max<Index>(1, W * familyCount))));
+    blocks = std::max(blocks, Executor::blockCount(model.grid()->height,
+                                                   std::max<Index>(1, kGrain / std::max<Index>(1, W * familyCount))));
   } else {
     blocks = std::max(blocks, Executor::blockCount(model.springCount(), kGrain));
   }
@@ -135,8 +141,8 @@ StepStatus StabilityCheck<S>::check(const Vec3Array<S>& x, const Vec3Array<S>& v
   } else {
     const Springs<S>& sp = model_->springs();
     exec.parallelForBlocks(sp.count(), kGrain, [&](Index block, Index b, Index e) {
-      blockBad_[block] = anyLongerIndexed(b, e, sp.a.data(), sp.b.data(), X, X + n, X + 2 * n,
-                                          sp.restLength.data(), ratio2);
+      blockBad_[block] =
+          anyLongerIndexed(b, e, sp.a.data(), sp.b.data(), X, X + n, X + 2 * n, sp.restLength.data(), ratio2);
     });
   }
   if (anyBad()) return locate(x, v);
@@ -148,16 +154,21 @@ template <class S>
 StepStatus StabilityCheck<S>::locate(const Vec3Array<S>& x, const Vec3Array<S>& v) const {
   StepStatus status;
   const Index n = model_->particleCount();
-  for (Index i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double values[2] = {static_cast<double>(x(i, c)), static_cast<double>(v(i, c))};
-      for (double value : values)
-        if (!std::isfinite(value)) {
-          status.code = StepCode::NonFinite;
-          status.particle = i;
-          status.value = value;
-          return status;
-        }
+  // A NaN force reaches a pinned particle as 0 x NaN; name the first free particle that
+  // went non-finite (where the instability is), and a pinned one only if no free one did.
+  for (int pass = 0; pass < 2; ++pass)
+    for (Index i = 0; i < n; ++i) {
+      if ((pass == 0) == model_->isPinned(i)) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double values[2] = {static_cast<double>(x(i, c)), static_cast<double>(v(i, c))};
+        for (double value : values)
+          if (!std::isfinite(value)) {
+            status.code = StepCode::NonFinite;
+            status.particle = i;
+            status.value = value;
+            return status;
+          }
+      }
     }
   if (options_.maxStretch <= 0) return status;
   const Springs<S>& sp = model_->springs();

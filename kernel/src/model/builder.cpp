@@ -1,6 +1,7 @@
 #include "weft/model/builder.hpp"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -98,6 +99,16 @@ ModelAndState<S> ModelBuilder<S>::build() {
   const Index m = springCount();
   if (n == 0) throw std::invalid_argument("ModelBuilder::build: the model has no particles");
 
+  // Values must be representable in S (converting an out-of-range double to float is
+  // undefined behaviour, and an infinite position is no position).
+  const auto scalar = [](double value, const char* field, Index i) {
+    if (!(std::abs(value) <= static_cast<double>(std::numeric_limits<S>::max())))
+      reject("ModelBuilder::build", indexed(field, i), value,
+             std::string("within the range of the model's precision (|value| <= ") +
+                 std::to_string(static_cast<double>(std::numeric_limits<S>::max())) + ")");
+    return static_cast<S>(value);
+  };
+
   ModelAndState<S> out;
   Model<S>& model = out.model;
   State<S>& state = out.state;
@@ -106,17 +117,17 @@ ModelAndState<S> ModelBuilder<S>::build() {
   state.x.resize(n, 3);
   state.v.resize(n, 3);
   for (Index i = 0; i < n; ++i) {
-    model.mass_[i] = static_cast<S>(mass_[i]);
-    model.inverseMass_[i] = pinned_[i] ? S(0) : static_cast<S>(1.0 / mass_[i]);
-    if (!pinned_[i] && !std::isfinite(static_cast<double>(model.inverseMass_[i])))
+    model.mass_[i] = scalar(mass_[i], "mass of particle", i);
+    if (!pinned_[i] && !(1.0 / mass_[i] <= static_cast<double>(std::numeric_limits<S>::max())))
       reject("ModelBuilder::build", indexed("mass of particle", i), mass_[i],
              "large enough that 1/mass is finite in the chosen precision");
-    state.x(i, 0) = static_cast<S>(px_[i]);
-    state.x(i, 1) = static_cast<S>(py_[i]);
-    state.x(i, 2) = static_cast<S>(pz_[i]);
-    state.v(i, 0) = pinned_[i] ? S(0) : static_cast<S>(vx_[i]);
-    state.v(i, 1) = pinned_[i] ? S(0) : static_cast<S>(vy_[i]);
-    state.v(i, 2) = pinned_[i] ? S(0) : static_cast<S>(vz_[i]);
+    model.inverseMass_[i] = pinned_[i] ? S(0) : static_cast<S>(1.0 / mass_[i]);
+    state.x(i, 0) = scalar(px_[i], "position.x of particle", i);
+    state.x(i, 1) = scalar(py_[i], "position.y of particle", i);
+    state.x(i, 2) = scalar(pz_[i], "position.z of particle", i);
+    state.v(i, 0) = pinned_[i] ? S(0) : scalar(vx_[i], "velocity.x of particle", i);
+    state.v(i, 1) = pinned_[i] ? S(0) : scalar(vy_[i], "velocity.y of particle", i);
+    state.v(i, 2) = pinned_[i] ? S(0) : scalar(vz_[i], "velocity.z of particle", i);
   }
   Springs<S>& sp = model.springs_;
   sp.a.resize(m);
@@ -128,9 +139,9 @@ ModelAndState<S> ModelBuilder<S>::build() {
   for (Index s = 0; s < m; ++s) {
     sp.a[s] = springA_[s];
     sp.b[s] = springB_[s];
-    sp.restLength[s] = static_cast<S>(rest_[s]);
-    sp.stiffness[s] = static_cast<S>(stiffness_[s]);
-    sp.damping[s] = static_cast<S>(damping_[s]);
+    sp.restLength[s] = scalar(rest_[s], "restLength of spring", s);
+    sp.stiffness[s] = scalar(stiffness_[s], "stiffness of spring", s);
+    sp.damping[s] = scalar(damping_[s], "damping of spring", s);
   }
 
   if (grid_) {
@@ -139,23 +150,44 @@ ModelAndState<S> ModelBuilder<S>::build() {
     if (static_cast<long long>(g.width) * g.height != n)
       throw std::invalid_argument("ModelBuilder::build: grid layout " + std::to_string(g.width) + " x " +
                                   std::to_string(g.height) + " does not match particle count " + std::to_string(n));
+    // Every family must stay inside the grid, so the stencil never reads out of bounds.
+    for (const GridFamily<S>& f : g.families) {
+      const bool rowsInside = (f.rowOffset >= 0) && (f.rowOffset < g.height);
+      const bool columnsInside = (f.columnOffset > -g.width) && (f.columnOffset < g.width);
+      const bool forward = (f.rowOffset > 0) || (f.columnOffset > 0);
+      const bool springsInside = (f.firstSpring >= 0) && (f.springCount >= 0) && (f.firstSpring <= m - f.springCount);
+      const bool inside = rowsInside && columnsInside && forward && springsInside;
+      if (!inside)
+        throw std::invalid_argument("ModelBuilder::build: grid layout family (rowOffset " +
+                                    std::to_string(f.rowOffset) + ", columnOffset " + std::to_string(f.columnOffset) +
+                                    ", firstSpring " + std::to_string(f.firstSpring) + ", springCount " +
+                                    std::to_string(f.springCount) + ") does not fit a " + std::to_string(g.width) +
+                                    " x " + std::to_string(g.height) + " grid of " + std::to_string(m) + " springs");
+    }
+    std::vector<char> covered(static_cast<size_t>(m), 0);  // springs claimed by a family
+    bool exactCover = true;
     for (const GridFamily<S>& f : g.families) {
       Index s = f.firstSpring;
       for (Index r = 0; r + f.rowOffset < g.height; ++r) {
         for (Index c = std::max(0, -f.columnOffset); c < std::min(g.width, g.width - f.columnOffset); ++c, ++s) {
-          const bool ok = s < m && sp.a[s] == r * g.width + c &&
-                          sp.b[s] == (r + f.rowOffset) * g.width + c + f.columnOffset &&
-                          sp.restLength[s] == f.restLength && sp.stiffness[s] == f.stiffness &&
-                          sp.damping[s] == f.damping;
+          const bool ok =
+              s < m && sp.a[s] == r * g.width + c && sp.b[s] == (r + f.rowOffset) * g.width + c + f.columnOffset &&
+              sp.restLength[s] == f.restLength && sp.stiffness[s] == f.stiffness && sp.damping[s] == f.damping;
           if (!ok)
             throw std::invalid_argument("ModelBuilder::build: spring " + std::to_string(s) +
                                         " does not match the recorded grid layout");
+          exactCover = exactCover && !covered[s];
+          covered[s] = 1;
         }
       }
       if (s - f.firstSpring != f.springCount)
         throw std::invalid_argument("ModelBuilder::build: grid family spring count mismatch");
     }
-    model.grid_ = std::move(grid_);
+    // GridStencil evaluates the families' springs and nothing else: a model with springs
+    // outside them (e.g. added after addClothGrid) or in two families is not a regular
+    // grid, so it gets no layout (Auto then picks Gather) instead of silently wrong forces.
+    for (Index s = 0; s < m && exactCover; ++s) exactCover = covered[s] != 0;
+    if (exactCover) model.grid_ = std::move(grid_);
   }
 
   *this = ModelBuilder<S>();

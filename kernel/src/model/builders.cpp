@@ -55,7 +55,8 @@ void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
 
 template <class S>
 void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
-  if (spec.width < 2) throw std::invalid_argument("ClothGridSpec.width must be >= 2, got " + std::to_string(spec.width));
+  if (spec.width < 2)
+    throw std::invalid_argument("ClothGridSpec.width must be >= 2, got " + std::to_string(spec.width));
   if (spec.height < 2)
     throw std::invalid_argument("ClothGridSpec.height must be >= 2, got " + std::to_string(spec.height));
   if (builder.particleCount() != 0)
@@ -64,34 +65,43 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
   requirePositive("ClothGridSpec.totalMass", spec.totalMass);
   const Vec3d u = normalised(spec.rowAxis, "ClothGridSpec.rowAxis");
   const Vec3d w = normalised(spec.columnAxis, "ClothGridSpec.columnAxis");
+  const double cx = u.y * w.z - u.z * w.y, cy = u.z * w.x - u.x * w.z, cz = u.x * w.y - u.y * w.x;
+  if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6))
+    throw std::invalid_argument("ClothGridSpec.rowAxis and ClothGridSpec.columnAxis must not be parallel, got (" +
+                                std::to_string(spec.rowAxis.x) + ", " + std::to_string(spec.rowAxis.y) + ", " +
+                                std::to_string(spec.rowAxis.z) + ") and (" + std::to_string(spec.columnAxis.x) + ", " +
+                                std::to_string(spec.columnAxis.y) + ", " + std::to_string(spec.columnAxis.z) + ")");
   const Index W = spec.width, H = spec.height;
   const double m = spec.totalMass / static_cast<double>(W * H);
   for (Index r = 0; r < H; ++r)
     for (Index c = 0; c < W; ++c) {
       const double a = spec.spacing * static_cast<double>(c), b = spec.spacing * static_cast<double>(r);
-      builder.addParticle({spec.origin.x + a * u.x + b * w.x, spec.origin.y + a * u.y + b * w.y,
-                           spec.origin.z + a * u.z + b * w.z},
-                          m);
+      builder.addParticle(
+          {spec.origin.x + a * u.x + b * w.x, spec.origin.y + a * u.y + b * w.y, spec.origin.z + a * u.z + b * w.z}, m);
     }
 
-  // Rest lengths come from the lattice (not from the possibly skewed axes' positions),
-  // so every spring of a family has exactly the same parameters.
+  // A family's rest length is the length of its lattice vector dc h u + dr h w: the same
+  // for every spring of the family (the stencil relies on that), and the true distance
+  // at rest also when the axes are not orthogonal (a skewed grid starts unstressed).
   struct FamilySpec {
     int dr, dc;
     SpringClass kind;
     const SpringMaterial* material;
-    double rest;
   };
   const double h = spec.spacing;
-  std::vector<FamilySpec> families = {{0, 1, SpringClass::Structural, &spec.structural, h},
-                                      {1, 0, SpringClass::Structural, &spec.structural, h}};
+  const auto restLength = [&](int dr, int dc) {
+    const double x = h * (dc * u.x + dr * w.x), y = h * (dc * u.y + dr * w.y), z = h * (dc * u.z + dr * w.z);
+    return std::sqrt(x * x + y * y + z * z);
+  };
+  std::vector<FamilySpec> families = {{0, 1, SpringClass::Structural, &spec.structural},
+                                      {1, 0, SpringClass::Structural, &spec.structural}};
   if (spec.shearSprings) {
-    families.push_back({1, 1, SpringClass::Shear, &spec.shear, h * std::sqrt(2.0)});
-    families.push_back({1, -1, SpringClass::Shear, &spec.shear, h * std::sqrt(2.0)});
+    families.push_back({1, 1, SpringClass::Shear, &spec.shear});
+    families.push_back({1, -1, SpringClass::Shear, &spec.shear});
   }
   if (spec.bendSprings) {
-    families.push_back({0, 2, SpringClass::Bend, &spec.bend, 2 * h});
-    families.push_back({2, 0, SpringClass::Bend, &spec.bend, 2 * h});
+    families.push_back({0, 2, SpringClass::Bend, &spec.bend});
+    families.push_back({2, 0, SpringClass::Bend, &spec.bend});
   }
   GridLayout<S> layout;
   layout.width = W;
@@ -100,13 +110,15 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
     GridFamily<S> g;
     g.rowOffset = f.dr;
     g.columnOffset = f.dc;
-    g.restLength = static_cast<S>(f.rest);
+    const double rest = restLength(f.dr, f.dc);
+    if (!(rest > 0)) throw std::invalid_argument("ClothGridSpec.rowAxis and columnAxis must not be parallel");
+    g.restLength = static_cast<S>(rest);
     g.stiffness = static_cast<S>(f.material->stiffness);
     g.damping = static_cast<S>(f.material->damping);
     g.firstSpring = builder.springCount();
     for (Index r = 0; r + f.dr < H; ++r)
       for (Index c = std::max(0, -f.dc); c < std::min(W, W - f.dc); ++c)
-        builder.addSpring(r * W + c, (r + f.dr) * W + c + f.dc, *f.material, f.kind, f.rest);
+        builder.addSpring(r * W + c, (r + f.dr) * W + c + f.dc, *f.material, f.kind, rest);
     g.springCount = builder.springCount() - g.firstSpring;
     if (g.springCount > 0) layout.families.push_back(g);
   }

@@ -4,9 +4,12 @@ namespace weft {
 
 const char* springClassName(SpringClass c) {
   switch (c) {
-    case SpringClass::Structural: return "structural";
-    case SpringClass::Shear: return "shear";
-    case SpringClass::Bend: return "bend";
+    case SpringClass::Structural:
+      return "structural";
+    case SpringClass::Shear:
+      return "shear";
+    case SpringClass::Bend:
+      return "bend";
   }
   return "unknown";
 }

@@ -7,8 +7,10 @@ namespace weft {
 
 const char* builtinSceneName(BuiltinScene scene) {
   switch (scene) {
-    case BuiltinScene::Flag: return "flag";
-    case BuiltinScene::Rope: return "rope";
+    case BuiltinScene::Flag:
+      return "flag";
+    case BuiltinScene::Rope:
+      return "rope";
   }
   return "unknown";
 }

@@ -13,7 +13,7 @@ namespace {
 const SimulationOptions& validated(const SimulationOptions& o) {
   if (!(std::isfinite(o.dt) && o.dt > 0))
     throw std::invalid_argument("SimulationOptions.dt must be finite and > 0 (s), got " + std::to_string(o.dt));
-  if (o.threads < 0)
+  if (!o.arena && o.threads < 0)
     throw std::invalid_argument("SimulationOptions.threads must be >= 0 (0 = all cores), got " +
                                 std::to_string(o.threads));
   if (!(std::isfinite(o.gravity.x) && std::isfinite(o.gravity.y) && std::isfinite(o.gravity.z)))
@@ -60,8 +60,8 @@ void Simulation<S>::setState(const State<S>& state) {
   const Index n = model_->particleCount();
   if (state.x.rows() != n || state.v.rows() != n)
     throw std::invalid_argument("Simulation::setState: state has " + std::to_string(state.x.rows()) +
-                                " positions and " + std::to_string(state.v.rows()) +
-                                " velocities, the model has " + std::to_string(n) + " particles");
+                                " positions and " + std::to_string(state.v.rows()) + " velocities, the model has " +
+                                std::to_string(n) + " particles");
   if (!state.x.allFinite() || !state.v.allFinite())
     throw std::invalid_argument("Simulation::setState: state has non-finite positions or velocities");
   state_ = state;
@@ -80,8 +80,8 @@ template <class S>
 StepStatus Simulation<S>::step() {
   if (!status_.ok()) return status_;
   executor_->run([&] {
-    lastWork_ = integrator_->advance(forces_, state_.x, state_.v, static_cast<S>(options_.dt), nextX_, nextV_,
-                                     *executor_);
+    lastWork_ =
+        integrator_->advance(forces_, state_.x, state_.v, static_cast<S>(options_.dt), nextX_, nextV_, *executor_);
     status_ = stability_.check(nextX_, nextV_, *executor_);
   });
   forceEvaluations_ += lastWork_.forceEvaluations;

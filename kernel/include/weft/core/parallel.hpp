@@ -8,7 +8,7 @@
 //      thread count: block k is [k * grain, min(count, (k + 1) * grain)).
 //   2. Blocks write disjoint memory; there are no floating-point atomics.
 //   3. A reduction writes one partial result per block and the caller combines the
-//      partials in block order (parallelReduceBlocks below does exactly that).
+//      partials in block order (parallelForBlocks below hands each block its index).
 // Under these rules the result of a pass is bitwise the same whether the blocks run on
 // one thread or many, in any order. Work runs inside a tbb::task_arena: either one the
 // Executor owns (thread count chosen by the caller) or one supplied by an embedding
@@ -39,7 +39,8 @@ class Executor {
   /// Number of threads work may be spread over (the arena's concurrency).
   int threadCount() const { return threadCount_; }
 
-  /// Runs f inside the arena (a direct call when already inside it).
+  /// Runs f inside the arena. With a single thread it is called directly: the calling
+  /// thread would be the arena's only worker anyway, and this skips the arena entry.
   template <class F>
   void run(F&& f) const {
     if (threadCount_ == 1) {
@@ -50,12 +51,16 @@ class Executor {
   }
 
   /// Number of blocks a pass over `count` items with block size `grain` has.
-  static Index blockCount(Index count, Index grain) { return count <= 0 ? 0 : (count + grain - 1) / grain; }
+  static Index blockCount(Index count, Index grain) {
+    if (grain < 1) grain = 1;
+    return count <= 0 ? 0 : (count + grain - 1) / grain;
+  }
 
   /// Calls body(begin, end) for each block [begin, end) of [0, count); blocks of
   /// `grain` items (the last may be shorter). Blocks may run concurrently.
   template <class Body>
   void parallelFor(Index count, Index grain, Body&& body) const {
+    if (grain < 1) grain = 1;
     const Index blocks = blockCount(count, grain);
     if (blocks == 0) return;
     if (threadCount_ == 1 || blocks == 1) {
@@ -82,6 +87,7 @@ class Executor {
   /// partial result into slot `block`, and the caller combines slots in order.
   template <class Body>
   void parallelForBlocks(Index count, Index grain, Body&& body) const {
+    if (grain < 1) grain = 1;
     parallelFor(Executor::blockCount(count, grain), 1, [&](Index kb, Index ke) {
       for (Index k = kb; k < ke; ++k) {
         const Index b = k * grain;

@@ -18,8 +18,8 @@ namespace weft {
 
 template <class S>
 struct State {
-  Vec3Array<S> x;  // (n x 3) positions, m
-  Vec3Array<S> v;  // (n x 3) velocities, m/s
+  Vec3Array<S> x;   // (n x 3) positions, m
+  Vec3Array<S> v;   // (n x 3) velocities, m/s
   double time = 0;  // simulated time, s (double whatever S is, so long runs keep their clock)
 
   Index particleCount() const { return static_cast<Index>(x.rows()); }

@@ -4,7 +4,7 @@
 // Design note
 // -----------
 // a_i = w_i (sum of spring forces on i) + [w_i > 0] g, with w_i the inverse mass (0 for
-// a pinned particle, whose acceleration is therefore exactly zero).
+// a pinned particle, whose acceleration is therefore exactly zero for any finite force).
 //
 // Parallel accumulation without races and without floating-point atomics. Three
 // strategies, each deterministic because every particle's sum is formed in an order that
@@ -17,12 +17,19 @@
 //               Any model. One pass per colour (about 12-14 on a cloth grid).
 //   GridStencil regular grids only: springs fall into families with a fixed neighbour
 //               offset (right, down, two diagonals, skip-right, skip-down) and uniform
-//               parameters. Per family, f is computed into an array indexed by the first
-//               endpoint, with contiguous loads only; then each particle sums
-//               f_k[i] - f_k[i - offset_k] over families: contiguous again, no index
-//               lists at all. Slots without a spring hold zero, so no masks are needed.
+//               parameters. Per chunk of rows, and per family, f is computed into a
+//               window indexed by the first endpoint, with contiguous loads only; then
+//               each particle of the chunk sums f_k[i] - f_k[i - offset_k] over families:
+//               contiguous again, no index lists at all. Slots without a spring hold
+//               zero, so no masks are needed. A chunk recomputes the springs of the two
+//               rows above it (the halo, ~5% extra work at 128^2) so that its window
+//               stays in L2 and chunks are independent: one pass, no barrier.
 // Auto picks GridStencil for grids and Gather otherwise (the faster general strategy
 // on this machine; see docs/benchmarks.md).
+//
+// Accelerations are handed to an AccelerationSink block by block, while they are still in
+// L1: an integrator combines them into its next stage state in the same pass (no
+// acceleration buffer written and read back, one parallel pass per stage instead of two).
 //
 // All scratch buffers are sized in the constructor; accelerations() never allocates.
 #pragma once
@@ -41,6 +48,27 @@ const char* forceStrategyName(ForceStrategy s);
 /// std::invalid_argument naming the value otherwise.
 ForceStrategy parseForceStrategy(const std::string& name);
 
+/// Receives accelerations for particles [begin, begin + count) (ax[t] is particle
+/// begin + t, m/s^2). Called concurrently for disjoint ranges, each particle exactly once
+/// per evaluation. It must not write the positions or velocities being evaluated (other
+/// blocks may still read them); it may write anything else belonging to its own range.
+template <class S>
+struct AccelerationSink {
+  void* context = nullptr;
+  void (*consume)(void* context, Index begin, Index count, const S* ax, const S* ay, const S* az) = nullptr;
+  void operator()(Index begin, Index count, const S* ax, const S* ay, const S* az) const {
+    consume(context, begin, count, ax, ay, az);
+  }
+};
+
+/// A sink calling f(begin, count, ax, ay, az); f must outlive the sink.
+template <class S, class F>
+AccelerationSink<S> makeSink(F& f) {
+  return {&f, [](void* c, Index begin, Index count, const S* ax, const S* ay, const S* az) {
+            (*static_cast<F*>(c))(begin, count, ax, ay, az);
+          }};
+}
+
 template <class S>
 class ForceField {
  public:
@@ -48,8 +76,14 @@ class ForceField {
   /// if GridStencil is requested for a model without a grid layout.
   ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity);
 
-  /// a = accelerations at positions x and velocities v (all n x 3).
+  /// Accelerations at positions x and velocities v (n x 3), handed to `sink` in blocks.
+  void accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
+                     const Executor& exec);
+  /// a = accelerations at positions x and velocities v (all n x 3; a distinct from x, v).
   void accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+
+  /// Largest block a sink is called with.
+  static constexpr Index kSinkBlock = 256;
 
   ForceStrategy strategy() const { return strategy_; }
   const Model<S>& model() const { return *model_; }
@@ -62,11 +96,16 @@ class ForceField {
   /// the results, do not depend on the thread count.
   static constexpr Index kSpringGrain = 4096;
   static constexpr Index kParticleGrain = 1024;
+  /// Particles per chunk of the GridStencil strategy (rows per chunk = this / width).
+  static constexpr Index kStencilChunkParticles = 2048;
 
  private:
-  void gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
-  void colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
-  void stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, Vec3Array<S>& a, const Executor& exec);
+  void gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
+                    const Executor& exec);
+  void colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
+                      const Executor& exec);
+  void stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
+                     const Executor& exec);
 
   const Model<S>* model_;
   ForceStrategy strategy_;
@@ -74,9 +113,9 @@ class ForceField {
 
   // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
   // meaning the particle is endpoint b and takes -f).
-  Vec3Array<S> springForce_;      // (m x 3) force on endpoint a, N
-  IndexArray incidenceOffsets_;   // (n + 1)
-  IndexArray incidence_;          // (2m)
+  Vec3Array<S> springForce_;     // (m x 3) force on endpoint a, N
+  IndexArray incidenceOffsets_;  // (n + 1)
+  IndexArray incidence_;         // (2m)
 
   // Coloured: springs permuted into colour order, as SoA.
   std::vector<Index> colourOffsets_;  // (colours + 1) ranges into the permuted arrays
@@ -84,10 +123,13 @@ class ForceField {
   ScalarArray<S> colRest_, colKs_, colKd_;
   Vec3Array<S> force_;  // (n x 3) accumulated force, N
 
-  // GridStencil: one (pad + n) x 3 force array per family, indexed by first endpoint.
-  std::vector<Vec3Array<S>> familyForce_;
+  // GridStencil: per chunk of rows, a window of family forces, laid out
+  // [chunk][family][axis][window slot], window slot = (row - r0 + halo) * width + column.
+  std::vector<S> stencilWindows_;    // N (force on the first endpoint of each spring)
   std::vector<Index> familyOffset_;  // index offset b - a of each family
-  Index stencilPad_ = 0;
+  Index maxRowOffset_ = 0;           // halo rows
+  Index chunkRows_ = 0;
+  Index windowSize_ = 0;  // slots per family and axis
 };
 
 extern template class ForceField<float>;

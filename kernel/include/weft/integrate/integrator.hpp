@@ -51,12 +51,8 @@ class Integrator {
 
   /// (x1, v1) = the state one step h after (x0, v0). All buffers (n x 3), distinct, and of
   /// the particle count given at construction.
-  virtual StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h,
-                           Vec3Array<S>& x1, Vec3Array<S>& v1, const Executor& exec) = 0;
-
-  /// Particles per block of the stage-combination passes (a fixed number: see
-  /// core/parallel.hpp for why block boundaries must not depend on the thread count).
-  static constexpr Index kRowGrain = 4096;
+  virtual StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
+                           Vec3Array<S>& v1, const Executor& exec) = 0;
 };
 
 /// An integrator with its stage buffers sized for `particleCount` particles.

@@ -18,24 +18,24 @@
 namespace weft {
 
 struct RopeSpec {
-  Index particleCount = 32;      // >= 2
-  Vec3d origin{0, 0, 0};         // position of particle 0, m
-  Vec3d direction{1, 0, 0};      // direction of the chain (normalised on use)
-  double length = 1;             // total rest length, m (> 0)
-  double totalMass = 0.1;        // kg (> 0), spread evenly
+  Index particleCount = 32;  // >= 2
+  Vec3d origin{0, 0, 0};     // position of particle 0, m
+  Vec3d direction{1, 0, 0};  // direction of the chain (normalised on use)
+  double length = 1;         // total rest length, m (> 0)
+  double totalMass = 0.1;    // kg (> 0), spread evenly
   SpringMaterial structural{500, 0.05};
-  bool bendSprings = true;       // add i -> i+2 springs
+  bool bendSprings = true;  // add i -> i+2 springs
   SpringMaterial bend{50, 0.01};
 };
 
 struct ClothGridSpec {
-  Index width = 64;              // particles along a row (>= 2)
-  Index height = 64;             // rows (>= 2)
-  Vec3d origin{0, 0, 0};         // position of particle (0, 0), m
-  Vec3d rowAxis{1, 0, 0};        // direction from column c to c+1 (normalised on use)
-  Vec3d columnAxis{0, 0, 1};     // direction from row r to r+1 (normalised on use)
-  double spacing = 1.0 / 63;     // distance between neighbours, m (> 0)
-  double totalMass = 0.5;        // kg (> 0), spread evenly
+  Index width = 64;           // particles along a row (>= 2)
+  Index height = 64;          // rows (>= 2)
+  Vec3d origin{0, 0, 0};      // position of particle (0, 0), m
+  Vec3d rowAxis{1, 0, 0};     // direction from column c to c+1 (normalised on use)
+  Vec3d columnAxis{0, 0, 1};  // direction from row r to r+1 (normalised on use)
+  double spacing = 1.0 / 63;  // distance between neighbours, m (> 0)
+  double totalMass = 0.5;     // kg (> 0), spread evenly
   SpringMaterial structural{800, 0.05};
   bool shearSprings = true;
   SpringMaterial shear{400, 0.025};

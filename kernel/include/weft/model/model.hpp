@@ -39,11 +39,11 @@ struct SpringMaterial {
 /// Springs as structure of arrays; entry s is one spring between particles a[s], b[s].
 template <class S>
 struct Springs {
-  IndexArray a;                  // (m) first endpoint
-  IndexArray b;                  // (m) second endpoint
-  ScalarArray<S> restLength;     // (m) r, m
-  ScalarArray<S> stiffness;      // (m) ks, N/m
-  ScalarArray<S> damping;        // (m) kd, N s/m
+  IndexArray a;                   // (m) first endpoint
+  IndexArray b;                   // (m) second endpoint
+  ScalarArray<S> restLength;      // (m) r, m
+  ScalarArray<S> stiffness;       // (m) ks, N/m
+  ScalarArray<S> damping;         // (m) kd, N s/m
   std::vector<SpringClass> kind;  // (m) class, cold data (counts, materials)
 
   Index count() const { return static_cast<Index>(a.rows()); }
@@ -53,11 +53,11 @@ struct Springs {
 /// c + columnOffset) inside the grid is joined to it, with the same parameters.
 template <class S>
 struct GridFamily {
-  int rowOffset = 0;     // dr >= 0
-  int columnOffset = 0;  // dc, may be negative (the anti-diagonal shear spring)
-  S restLength = 0;      // m
-  S stiffness = 0;       // N/m
-  S damping = 0;         // N s/m
+  int rowOffset = 0;      // dr >= 0
+  int columnOffset = 0;   // dc, may be negative (the anti-diagonal shear spring)
+  S restLength = 0;       // m
+  S stiffness = 0;        // N/m
+  S damping = 0;          // N s/m
   Index firstSpring = 0;  // the family's springs are springs [firstSpring, firstSpring + springCount)
   Index springCount = 0;
 };

@@ -28,11 +28,11 @@ namespace weft {
 
 struct SimulationOptions {
   IntegratorKind integrator = IntegratorKind::Rk4;
-  double dt = 1e-3;                   // fixed time step, s (> 0)
-  int threads = 0;                    // arena size when weft owns the arena (0 = all cores)
-  tbb::task_arena* arena = nullptr;   // the embedding program's arena (then `threads` is ignored)
+  double dt = 1e-3;                  // fixed time step, s (> 0)
+  int threads = 0;                   // arena size when weft owns the arena (0 = all cores)
+  tbb::task_arena* arena = nullptr;  // the embedding program's arena (then `threads` is ignored)
   ForceStrategy forceStrategy = ForceStrategy::Auto;
-  Vec3d gravity{0, -9.81, 0};         // m/s^2
+  Vec3d gravity{0, -9.81, 0};  // m/s^2
   StabilityOptions stability;
 };
 

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The documented benchmark run: builds Release, runs weft_bench with repetitions, writes
+# Google Benchmark JSON to bench/results/<name>.json, measures the peak memory of the
+# 256^2 float flag, and prints the summary tables that docs/benchmarks.md quotes.
+#
+#   bash bench/run_benchmarks.sh [name] [extra weft_bench flags...]
+#
+# Compare two runs with Google Benchmark's compare.py (tools/compare.py in its sources):
+#   compare.py benchmarks bench/results/A.json bench/results/B.json
+set -euo pipefail
+cd "$(dirname "$0")/.."
+name="${1:-$(date -u +%Y-%m-%d)-$(hostname -s)}"
+shift || true
+bash tools/setup.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j2 --target weft_bench weft_cli
+mkdir -p bench/results
+out="bench/results/${name}.json"
+build/bin/weft_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
+  --benchmark_min_time=0.2 --benchmark_out="$out" --benchmark_out_format=json "$@"
+rss="bench/results/${name}-memory.json"
+build/bin/weft run flag --size 256 --precision float --steps 50 --json > "$rss"
+/usr/bin/python3 bench/summarize.py "$out" "$rss"

@@ -1,0 +1,209 @@
+// tests/support/test_support.hpp — helpers shared by the weft test executables.
+//
+// Scalar-type and integrator parameterisation, scalar-dependent tolerances, seeded random
+// perturbations, and the small scenes the property tests use (a single damped oscillator,
+// a flag without pins). Everything is header-only so that each test file stays its own
+// executable with no extra library.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+#include "weft/weft.hpp"
+
+namespace weft::test {
+
+// ---------------------------------------------------------------------------------------
+// Scalar types
+// ---------------------------------------------------------------------------------------
+
+using ScalarTypes = ::testing::Types<float, double>;
+
+template <class S>
+constexpr const char* scalarName() {
+  return std::is_same_v<S, float> ? "float" : "double";
+}
+
+// (Suites over ScalarTypes keep gtest's default names, Suite/0 and Suite/1: CMake's
+// gtest_discover_tests then names the ctest entries Suite.Test<float> / <double>.)
+
+/// Machine epsilon of S, as a double (the unit of every scalar-dependent tolerance).
+template <class S>
+constexpr double eps() {
+  return static_cast<double>(std::numeric_limits<S>::epsilon());
+}
+
+// ---------------------------------------------------------------------------------------
+// (scalar, integrator) configurations, generated from weft::kAllIntegrators so that a new
+// integrator is covered by every parameterised test without touching the tests.
+// ---------------------------------------------------------------------------------------
+
+template <class S, IntegratorKind K>
+struct Config {
+  using Scalar = S;
+  static constexpr IntegratorKind kIntegrator = K;
+};
+
+template <class Seq>
+struct AllConfigsFor;
+template <std::size_t... I>
+struct AllConfigsFor<std::index_sequence<I...>> {
+  using type = ::testing::Types<Config<float, kAllIntegrators[I]>..., Config<double, kAllIntegrators[I]>...>;
+};
+
+/// Every integrator in float and in double.
+using AllConfigs = AllConfigsFor<std::make_index_sequence<std::size(kAllIntegrators)>>::type;
+
+/// Name generator for TYPED_TEST_SUITE over AllConfigs: "float_rk4", "double_euler", ...
+/// (gtest prints Suite/float_rk4.Test; the ctest entry is named
+/// Suite.Test<Suite/float_rk4.  # TypeParam = ...>, so `ctest -R float_rk4` selects it.)
+struct ConfigNames {
+  template <class C>
+  static std::string GetName(int) {
+    return std::string(scalarName<typename C::Scalar>()) + "_" + integratorName(C::kIntegrator);
+  }
+};
+
+/// The force strategies that apply to a cloth grid (Auto resolves to one of them).
+inline constexpr ForceStrategy kGridStrategies[] = {ForceStrategy::Gather, ForceStrategy::Coloured,
+                                                    ForceStrategy::GridStencil};
+/// The force strategies that apply to any model.
+inline constexpr ForceStrategy kGeneralStrategies[] = {ForceStrategy::Gather, ForceStrategy::Coloured};
+
+// ---------------------------------------------------------------------------------------
+// State helpers
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+bool allFinite(const State<S>& s) {
+  return s.x.allFinite() && s.v.allFinite();
+}
+
+/// Adds uniform noise in [-amplitude, amplitude] to every coordinate of the rows of `a`
+/// that `keep(i)` does not exclude. Seeded: the same call gives the same numbers.
+template <class S, class Keep>
+void addNoise(Vec3Array<S>& a, double amplitude, std::uint32_t seed, Keep keep) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amplitude, amplitude);
+  for (Index i = 0; i < a.rows(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double d = u(rng);  // drawn for every entry, so the stream does not depend on keep
+      if (keep(i)) a(i, c) = static_cast<S>(static_cast<double>(a(i, c)) + d);
+    }
+}
+
+template <class S>
+void addNoise(Vec3Array<S>& a, double amplitude, std::uint32_t seed) {
+  addNoise<S>(a, amplitude, seed, [](Index) { return true; });
+}
+
+/// Perturbs the free particles of a model's state: positions by +-dx, velocities by +-dv.
+template <class S>
+void perturbFree(const Model<S>& model, State<S>& state, double dx, double dv, std::uint32_t seed) {
+  const auto isFree = [&](Index i) { return !model.isPinned(i); };
+  addNoise<S>(state.x, dx, seed, isFree);
+  addNoise<S>(state.v, dv, seed + 1, isFree);
+}
+
+/// Total linear momentum sum m_i v_i, accumulated in long double.
+template <class S>
+std::array<long double, 3> momentum(const Model<S>& model, const State<S>& state) {
+  std::array<long double, 3> p{0, 0, 0};
+  for (Index i = 0; i < model.particleCount(); ++i)
+    for (int c = 0; c < 3; ++c) p[c] += static_cast<long double>(model.mass()[i]) * state.v(i, c);
+  return p;
+}
+
+// ---------------------------------------------------------------------------------------
+// Scenes
+// ---------------------------------------------------------------------------------------
+
+/// One damped oscillator on the x axis: particle 0 pinned at the origin, particle 1 of
+/// mass m at (rest + amplitude, 0, 0) at rest, one spring (ks, kd, rest). With gravity 0
+/// the motion stays on the x axis and is the linear ODE m x'' = -ks (x - rest) - kd x'.
+struct Oscillator {
+  double mass = 0.5;                          // kg
+  double omega = 2 * 3.14159265358979323846;  // undamped angular frequency, rad/s
+  double damping = 0.2;                       // kd, N s/m
+  double rest = 0.5;                          // m
+  double amplitude = 0.25;                    // initial displacement, m (< rest: x stays > 0)
+
+  double stiffness() const { return mass * omega * omega; }
+  double zeta() const { return damping / (2 * mass * omega); }
+  double omegaD() const { return omega * std::sqrt(1 - zeta() * zeta()); }
+
+  /// Exact (x, x') at time t (underdamped, released from rest).
+  std::pair<double, double> exact(double t) const {
+    const double sigma = zeta() * omega, wd = omegaD();
+    const double a = amplitude, b = sigma * amplitude / wd;
+    const double e = std::exp(-sigma * t), c = std::cos(wd * t), s = std::sin(wd * t);
+    const double u = e * (a * c + b * s);
+    const double du = e * (-sigma * (a * c + b * s) + (-a * wd * s + b * wd * c));
+    return {rest + u, du};
+  }
+
+  template <class S>
+  ModelAndState<S> build() const {
+    ModelBuilder<S> builder;
+    builder.addParticle({0, 0, 0}, 1.0);
+    builder.addParticle({rest + amplitude, 0, 0}, mass);
+    builder.pin(0);
+    builder.addSpring(0, 1, {stiffness(), damping}, SpringClass::Structural, rest);
+    return builder.build();
+  }
+
+  /// Options for a single-threaded run without gravity and with the stretch check out of
+  /// the way (the oscillator is checked against its exact solution instead).
+  SimulationOptions options(IntegratorKind kind, double dt) const {
+    SimulationOptions o;
+    o.integrator = kind;
+    o.dt = dt;
+    o.threads = 1;
+    o.gravity = {0, 0, 0};
+    o.stability.maxStretch = 1e6;
+    return o;
+  }
+};
+
+/// The flag's grid (weft::flagSpec) built without pins.
+template <class S>
+ModelAndState<S> makeFreeFlag(Index size) {
+  ModelBuilder<S> builder;
+  addClothGrid(builder, flagSpec(size));
+  return builder.build();
+}
+
+/// The flag scene (pinned at two corners) with every spring's damping set to zero.
+template <class S>
+ModelAndState<S> makeUndampedFlag(Index size) {
+  ClothGridSpec spec = flagSpec(size);
+  spec.structural.damping = 0;
+  spec.shear.damping = 0;
+  spec.bend.damping = 0;
+  ModelBuilder<S> builder;
+  addClothGrid(builder, spec);
+  builder.pin(gridIndex(spec, 0, 0));
+  builder.pin(gridIndex(spec, 0, spec.width - 1));
+  return builder.build();
+}
+
+/// Options for a run of the flag scene.
+inline SimulationOptions flagOptions(IntegratorKind kind, ForceStrategy strategy, int threads, double dt) {
+  SimulationOptions o;
+  o.integrator = kind;
+  o.forceStrategy = strategy;
+  o.threads = threads;
+  o.dt = dt;
+  return o;
+}
+
+}  // namespace weft::test

@@ -1,0 +1,186 @@
+// tests/test_cli.cpp — the `weft` command line, run as a separate process (popen).
+// WEFT_CLI_PATH is the binary's path, given by CMake ($<TARGET_FILE:weft_cli>).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cctype>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "support/test_support.hpp"
+
+#ifndef WEFT_CLI_PATH
+#error "WEFT_CLI_PATH must name the weft binary"
+#endif
+
+namespace weft::test {
+namespace {
+
+struct CliRun {
+  int exitCode = -1;
+  std::string output;
+};
+
+/// Runs `weft <args>`; `output` is stdout, or stdout and stderr when mergeStderr.
+CliRun weft(const std::string& args, bool mergeStderr) {
+  const std::string command = std::string("'") + WEFT_CLI_PATH + "' " + args + (mergeStderr ? " 2>&1" : " 2>/dev/null");
+  CliRun r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    ADD_FAILURE() << "popen failed: " << command;
+    return r;
+  }
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  return r;
+}
+
+nlohmann::json runJson(const std::string& args) {
+  const CliRun r = weft(args + " --json", false);
+  EXPECT_EQ(r.exitCode, 0) << "weft " << args << " --json\n" << r.output;
+  try {
+    // The whole of stdout must be exactly one JSON value.
+    return nlohmann::json::parse(r.output);
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "stdout is not one JSON document (" << e.what() << "):\n" << r.output;
+    return {};
+  }
+}
+
+TEST(Cli, JsonSummaryHasTheDocumentedKeys) {
+  const nlohmann::json j = runJson("run flag --steps 20");
+  ASSERT_TRUE(j.is_object()) << j.dump();
+  for (const char* key : {"scene", "particles", "springs", "integrator", "precision", "threads", "steps", "dt",
+                          "wall_seconds", "steps_per_second", "spring_evals_per_second", "status", "state_hash"})
+    EXPECT_TRUE(j.contains(key)) << "missing key " << key << " in " << j.dump();
+  if (testing::Test::HasFailure()) return;
+
+  // The defaults: the 64 x 64 flag, RK4, double, all cores, the scene's time step.
+  const ClothGridSpec spec = flagSpec(64);
+  const auto counts = expectedGridSpringCounts(spec);
+  EXPECT_EQ(j["scene"], "flag");
+  EXPECT_EQ(j["particles"], 64 * 64);
+  EXPECT_EQ(j["springs"], counts[0] + counts[1] + counts[2]);
+  EXPECT_EQ(j["integrator"], "rk4");
+  EXPECT_EQ(j["precision"], "double");
+  EXPECT_GE(j["threads"].get<int>(), 1);
+  EXPECT_EQ(j["steps"], 20);
+  EXPECT_DOUBLE_EQ(j["dt"].get<double>(), defaultTimeStep(BuiltinScene::Flag, 64));
+  EXPECT_GE(j["wall_seconds"].get<double>(), 0.0);
+  EXPECT_GE(j["steps_per_second"].get<double>(), 0.0);
+  EXPECT_GE(j["spring_evals_per_second"].get<double>(), 0.0);
+  EXPECT_EQ(j["status"], "ok");
+  const std::string hash = j["state_hash"].get<std::string>();
+  EXPECT_TRUE(hash.size() == 18 && hash.rfind("0x", 0) == 0 &&
+              hash.find_first_not_of("0123456789abcdef", 2) == std::string::npos)
+      << "state_hash is not 0x and 16 hex digits: " << hash;
+}
+
+TEST(Cli, OptionsAreReflectedInTheSummary) {
+  const nlohmann::json j = runJson(
+      "run rope --size 20 --steps 7 --dt 1e-4 --integrator midpoint --precision float "
+      "--threads 1 --strategy coloured");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["scene"], "rope");
+  EXPECT_EQ(j["particles"], 20);
+  EXPECT_EQ(j["springs"], 19 + 18);
+  EXPECT_EQ(j["integrator"], "midpoint");
+  EXPECT_EQ(j["precision"], "float");
+  EXPECT_EQ(j["threads"], 1);
+  EXPECT_EQ(j["steps"], 7);
+  EXPECT_DOUBLE_EQ(j["dt"].get<double>(), 1e-4);
+  EXPECT_EQ(j["status"], "ok");
+}
+
+TEST(Cli, StateHashMatchesTheLibrary) {
+  // The same run in this process: the command line adds nothing to the physics.
+  const nlohmann::json j = runJson("run flag --size 24 --steps 15 --threads 2");
+  ASSERT_TRUE(j.is_object());
+  SimulationOptions options;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, 24);
+  options.threads = 1;
+  Simulation<double> sim(makeFlag<double>(24), options);
+  ASSERT_TRUE(sim.run(15).ok());
+  char expected[19];
+  std::snprintf(expected, sizeof expected, "0x%016llx", static_cast<unsigned long long>(stateHash(sim.state())));
+  EXPECT_EQ(j["state_hash"], expected);
+}
+
+TEST(Cli, StateHashIsTheSameForOneAndTwoThreads) {
+  for (const IntegratorKind kind : kAllIntegrators)
+    for (const char* precision : {"float", "double"}) {
+      const std::string args = std::string("run flag --size 40 --steps 10 --precision ") + precision +
+                               " --integrator " + integratorName(kind);
+      SCOPED_TRACE(args);
+      const nlohmann::json one = runJson(args + " --threads 1");
+      const nlohmann::json two = runJson(args + " --threads 2");
+      ASSERT_TRUE(one.is_object() && two.is_object());
+      EXPECT_EQ(one["threads"], 1);
+      EXPECT_EQ(two["threads"], 2);
+      EXPECT_EQ(one["status"], "ok");
+      EXPECT_EQ(one["state_hash"], two["state_hash"]);
+    }
+  for (const char* strategy : {"gather", "coloured"}) {
+    const std::string args = std::string("run flag --size 40 --steps 10 --strategy ") + strategy;
+    SCOPED_TRACE(args);
+    EXPECT_EQ(runJson(args + " --threads 1")["state_hash"], runJson(args + " --threads 2")["state_hash"]);
+  }
+}
+
+TEST(Cli, StabilityFailureExitsWithThreeAndNamesTheParticle) {
+  const CliRun r = weft("run flag --size 16 --integrator euler --dt 0.01 --steps 100 --json", false);
+  EXPECT_EQ(r.exitCode, 3) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_NE(j["status"], "ok");
+  EXPECT_LT(j["steps"].get<int>(), 100);
+  ASSERT_TRUE(j.contains("status_message"));
+  EXPECT_NE(j["status_message"].get<std::string>().find("particle"), std::string::npos) << j["status_message"];
+}
+
+struct BadOption {
+  const char* args;
+  const char* option;  // what the message must name
+  const char* value;
+};
+
+class CliBadOption : public ::testing::TestWithParam<BadOption> {};
+
+TEST_P(CliBadOption, ExitsNonZeroNamingTheOptionAndTheValue) {
+  const BadOption& bad = GetParam();
+  const CliRun r = weft(std::string("run ") + bad.args + " --steps 1", true);
+  EXPECT_EQ(r.exitCode, 2) << "bad input exits 2 (README)\n" << r.output;
+  EXPECT_NE(r.output.find(bad.option), std::string::npos) << "message does not name " << bad.option << ":\n"
+                                                          << r.output;
+  EXPECT_NE(r.output.find(bad.value), std::string::npos) << "message does not name " << bad.value << ":\n" << r.output;
+  EXPECT_EQ(r.output.find("state_hash"), std::string::npos) << "it ran anyway:\n" << r.output;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Run, CliBadOption,
+    ::testing::Values(BadOption{"flag --integrator foo", "--integrator", "foo"}, BadOption{"moon", "scene", "moon"},
+                      BadOption{"flag --dt 0", "--dt", "0"}, BadOption{"flag --dt -1", "--dt", "-1"},
+                      BadOption{"flag --dt nan", "--dt", "nan"}, BadOption{"flag --dt 1e-3x", "--dt", "1e-3x"},
+                      BadOption{"flag --size 1", "--size", "1"}, BadOption{"flag --steps abc", "--steps", "abc"},
+                      BadOption{"flag --precision half", "--precision", "half"},
+                      BadOption{"flag --threads -1", "--threads", "-1"},
+                      BadOption{"flag --strategy scatter", "--strategy", "scatter"}),
+    [](const auto& info) {
+      std::string name = info.param.args;
+      for (char& c : name)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      return name;
+    });
+
+TEST(Cli, NoSubcommandIsAnError) {
+  const CliRun r = weft("", true);
+  EXPECT_NE(r.exitCode, 0) << r.output;
+}
+
+}  // namespace
+}  // namespace weft::test

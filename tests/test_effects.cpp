@@ -1,0 +1,562 @@
+// tests/test_effects.cpp — the damped spring force law and the ForceField strategies.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "support/test_support.hpp"
+#include "weft/effects/force_field.hpp"
+#include "weft/effects/spring_force.hpp"
+
+namespace weft::test {
+namespace {
+
+template <class S>
+class SpringForce : public ::testing::Test {};
+TYPED_TEST_SUITE(SpringForce, ScalarTypes);
+
+template <class S>
+struct SpringInput {
+  S dx[3], dv[3];
+  S rest, ks, kd;
+};
+
+template <class S>
+std::array<S, 3> force(const SpringInput<S>& in) {
+  std::array<S, 3> f{};
+  dampedSpringForce<S>(in.dx[0], in.dx[1], in.dx[2], in.dv[0], in.dv[1], in.dv[2], in.rest, in.ks, in.kd, f[0], f[1],
+                       f[2]);
+  return f;
+}
+
+/// Witkin/Baraff, written out independently in long double from the (rounded) S inputs:
+/// f_a = -[ks (|dx| - r) + kd (dv . dx) / |dx|] dx / |dx|.
+template <class S>
+std::array<long double, 3> referenceForce(const SpringInput<S>& in) {
+  long double d[3], v[3];
+  for (int c = 0; c < 3; ++c) d[c] = in.dx[c], v[c] = in.dv[c];
+  const long double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  const long double dvDotDx = v[0] * d[0] + v[1] * d[1] + v[2] * d[2];
+  const long double magnitude =
+      static_cast<long double>(in.ks) * (len - in.rest) + static_cast<long double>(in.kd) * dvDotDx / len;
+  std::array<long double, 3> f{};
+  for (int c = 0; c < 3; ++c) f[c] = -magnitude * d[c] / len;
+  return f;
+}
+
+/// Random springs: lengths around the rest length (stretched and compressed), arbitrary
+/// directions and relative velocities.
+template <class S>
+std::vector<SpringInput<S>> randomSprings(int count, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(-1, 1), rest(0.01, 2), ks(0, 1000), kd(0, 5), stretch(0.2, 3);
+  std::vector<SpringInput<S>> out;
+  for (int k = 0; k < count; ++k) {
+    SpringInput<S> in{};
+    double d[3];
+    double n2 = 0;
+    do {
+      for (double& c : d) c = unit(rng);
+      n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    } while (n2 < 1e-4 || n2 > 1);
+    const double r = rest(rng), len = r * stretch(rng);
+    for (int c = 0; c < 3; ++c) {
+      in.dx[c] = static_cast<S>(d[c] / std::sqrt(n2) * len);
+      in.dv[c] = static_cast<S>(3 * unit(rng));
+    }
+    in.rest = static_cast<S>(r);
+    in.ks = static_cast<S>(ks(rng));
+    in.kd = static_cast<S>(kd(rng));
+    out.push_back(in);
+  }
+  return out;
+}
+
+/// Size of the terms the force is made of: a bound for its rounding error is a few eps of it.
+template <class S>
+long double forceScale(const SpringInput<S>& in) {
+  long double len2 = 0, dv2 = 0;
+  for (int c = 0; c < 3; ++c) len2 += (long double)in.dx[c] * in.dx[c], dv2 += (long double)in.dv[c] * in.dv[c];
+  return in.ks * (std::sqrt(len2) + in.rest) + in.kd * std::sqrt(dv2);
+}
+
+TYPED_TEST(SpringForce, MatchesWitkinBaraffInLongDouble) {
+  using S = TypeParam;
+  for (const SpringInput<S>& in : randomSprings<S>(2000, 1)) {
+    const auto f = force(in);
+    const auto ref = referenceForce(in);
+    const long double tol = 16 * eps<S>() * forceScale(in);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(static_cast<long double>(f[c]), ref[c], tol) << "component " << c;
+  }
+}
+
+TYPED_TEST(SpringForce, ForceOnBIsExactlyMinusForceOnA) {
+  using S = TypeParam;
+  for (const SpringInput<S>& in : randomSprings<S>(500, 2)) {
+    SpringInput<S> swapped = in;  // the same spring seen from b: dx and dv change sign
+    for (int c = 0; c < 3; ++c) swapped.dx[c] = -in.dx[c], swapped.dv[c] = -in.dv[c];
+    const auto fa = force(in);
+    const auto fb = force(swapped);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(fb[c], -fa[c]) << "component " << c;
+  }
+}
+
+TYPED_TEST(SpringForce, UndampedForceIsMinusEnergyGradient) {
+  using S = TypeParam;
+  using LD = long double;
+  for (SpringInput<S> in : randomSprings<S>(500, 3)) {
+    in.kd = 0;
+    const auto f = force(in);
+    // E(dx) = ks (|dx| - r)^2 / 2, with dx = x_a - x_b, so the force on a is -dE/dx.
+    const auto energy = [&](const LD* d) {
+      return springEnergy<LD>(std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), in.rest, in.ks);
+    };
+    LD len = 0;
+    for (int c = 0; c < 3; ++c) len += (LD)in.dx[c] * in.dx[c];
+    len = std::sqrt(len);
+    const LD h = 1e-6L * len;
+    for (int c = 0; c < 3; ++c) {
+      LD plus[3] = {in.dx[0], in.dx[1], in.dx[2]}, minus[3] = {in.dx[0], in.dx[1], in.dx[2]};
+      plus[c] += h;
+      minus[c] -= h;
+      const LD gradient = (energy(plus) - energy(minus)) / (2 * h);
+      EXPECT_NEAR(static_cast<LD>(f[c]), -gradient, 16 * eps<S>() * forceScale(in) + 1e-9L * in.ks * len)
+          << "component " << c;
+    }
+  }
+}
+
+TYPED_TEST(SpringForce, SpringEnergyIsHalfKsStretchSquared) {
+  using S = TypeParam;
+  EXPECT_EQ(springEnergy<S>(S(3), S(1), S(10)), S(20));
+  EXPECT_EQ(springEnergy<S>(S(1), S(3), S(10)), S(20));
+  EXPECT_EQ(springEnergy<S>(S(2), S(2), S(10)), S(0));
+}
+
+TYPED_TEST(SpringForce, StretchedSpringPullsCompressedSpringPushes) {
+  using S = TypeParam;
+  S fx, fy, fz;
+  // a at +x of b, stretched: force on a points to b (-x).
+  dampedSpringForce<S>(S(2), S(0), S(0), S(0), S(0), S(0), S(1), S(10), S(0), fx, fy, fz);
+  EXPECT_EQ(fx, S(-10));
+  EXPECT_EQ(fy, S(0));
+  EXPECT_EQ(fz, S(0));
+  // Compressed: pushes a away (+x).
+  dampedSpringForce<S>(S(0.5), S(0), S(0), S(0), S(0), S(0), S(1), S(10), S(0), fx, fy, fz);
+  EXPECT_EQ(fx, S(5));
+  // Damping opposes the relative velocity along the spring (a moving away from b).
+  dampedSpringForce<S>(S(1), S(0), S(0), S(2), S(7), S(0), S(1), S(10), S(0.5), fx, fy, fz);
+  EXPECT_EQ(fx, S(-1));
+  EXPECT_EQ(fy, S(0));  // the perpendicular part of dv is not damped
+}
+
+TYPED_TEST(SpringForce, ZeroLengthSpringGivesZeroForceNotNaN) {
+  using S = TypeParam;
+  S f[3] = {S(1), S(1), S(1)};
+  dampedSpringForce<S>(S(0), S(0), S(0), S(1), S(-2), S(3), S(0.5), S(100), S(2), f[0], f[1], f[2]);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_TRUE(std::isfinite(f[c])) << "component " << c;
+    EXPECT_EQ(f[c], S(0)) << "component " << c;
+  }
+  // Also with rest length 0 (no force wanted at all) and without velocity.
+  dampedSpringForce<S>(S(0), S(0), S(0), S(0), S(0), S(0), S(0), S(100), S(2), f[0], f[1], f[2]);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(f[c], S(0)) << "component " << c;
+}
+
+TYPED_TEST(SpringForce, TinyLengthsGiveFiniteBoundedForce) {
+  using S = TypeParam;
+  const S rest = S(0.5), ks = S(100), kd = S(2);
+  const S dv[3] = {S(1), S(-2), S(3)};
+  const long double bound = (long double)ks * rest + (long double)kd * std::sqrt(14.0L);
+  const double tinies[] = {std::is_same_v<S, float> ? 1e-20 : 1e-30,   // the required tiny lengths
+                           std::is_same_v<S, float> ? 1e-18 : 1e-150,  // still has a direction
+                           static_cast<double>(std::numeric_limits<S>::denorm_min())};
+  for (const double tiny : tinies) {
+    for (const auto& dir :
+         {std::array<double, 3>{1, 0, 0}, std::array<double, 3>{0.6, -0.8, 0}, std::array<double, 3>{1, 1, 1}}) {
+      SCOPED_TRACE(::testing::Message() << "length " << tiny << ", direction " << dir[0] << " " << dir[1] << " "
+                                        << dir[2]);
+      S f[3];
+      const S d[3] = {static_cast<S>(tiny * dir[0]), static_cast<S>(tiny * dir[1]), static_cast<S>(tiny * dir[2])};
+      dampedSpringForce<S>(d[0], d[1], d[2], dv[0], dv[1], dv[2], rest, ks, kd, f[0], f[1], f[2]);
+      long double norm2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_TRUE(std::isfinite(f[c])) << "component " << c << " = " << f[c];
+        norm2 += (long double)f[c] * f[c];
+      }
+      // |f| = |ks (len - r) + kd dv.dx/|dx|| <= ks r + kd |dv| for len <= r.
+      EXPECT_LE(std::sqrt(norm2), bound * (1 + 8 * eps<S>()));
+    }
+  }
+  // A length whose square is still normal keeps its direction: a compressed spring
+  // pushes a away from b with about ks r.
+  S fx, fy, fz;
+  const S len = std::is_same_v<S, float> ? S(1e-18) : S(1e-30);
+  dampedSpringForce<S>(len, S(0), S(0), S(0), S(0), S(0), rest, ks, S(0), fx, fy, fz);
+  EXPECT_NEAR(fx, ks * rest, 4 * eps<S>() * ks * rest);
+  EXPECT_EQ(fy, S(0));
+  EXPECT_EQ(fz, S(0));
+}
+
+// ---------------------------------------------------------------------------------------
+// ForceField
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+class ForceFieldTest : public ::testing::Test {};
+TYPED_TEST_SUITE(ForceFieldTest, ScalarTypes);
+
+/// Accelerations computed naively in long double, and per particle the sum of the
+/// magnitudes of the terms (the scale of the rounding error of any summation order).
+template <class S>
+struct Reference {
+  std::vector<std::array<long double, 3>> a;
+  std::vector<long double> scale;
+};
+
+template <class S>
+Reference<S> referenceAccelerations(const Model<S>& model, const State<S>& state, const Vec3d& g) {
+  const Index n = model.particleCount();
+  Reference<S> r;
+  r.a.assign(n, {0, 0, 0});
+  r.scale.assign(n, 0);
+  const Springs<S>& sp = model.springs();
+  for (Index s = 0; s < sp.count(); ++s) {
+    SpringInput<S> in{};
+    for (int c = 0; c < 3; ++c) {
+      // dx rounded to S as the kernel does, then the law in long double.
+      in.dx[c] = state.x(sp.a[s], c) - state.x(sp.b[s], c);
+      in.dv[c] = state.v(sp.a[s], c) - state.v(sp.b[s], c);
+    }
+    in.rest = sp.restLength[s];
+    in.ks = sp.stiffness[s];
+    in.kd = sp.damping[s];
+    const auto f = referenceForce(in);
+    const long double scale = forceScale(in);
+    for (int c = 0; c < 3; ++c) {
+      r.a[sp.a[s]][c] += f[c];
+      r.a[sp.b[s]][c] -= f[c];
+    }
+    r.scale[sp.a[s]] += scale;
+    r.scale[sp.b[s]] += scale;
+  }
+  const long double gv[3] = {g.x, g.y, g.z};
+  for (Index i = 0; i < n; ++i) {
+    const long double w = model.inverseMass()[i];
+    for (int c = 0; c < 3; ++c) r.a[i][c] = w * r.a[i][c] + (w > 0 ? gv[c] : 0.0L);
+    r.scale[i] = w * r.scale[i] + std::sqrt(gv[0] * gv[0] + gv[1] * gv[1] + gv[2] * gv[2]);
+  }
+  return r;
+}
+
+template <class S>
+Vec3Array<S> accelerations(const Model<S>& model, const State<S>& state, ForceStrategy strategy, const Vec3d& g,
+                           int threads) {
+  ForceField<S> field(model, strategy, g);
+  const Executor exec(threads);
+  Vec3Array<S> a = Vec3Array<S>::Constant(model.particleCount(), 3, std::numeric_limits<S>::quiet_NaN());
+  field.accelerations(state.x, state.v, a, exec);
+  return a;
+}
+
+/// Each strategy against the long-double reference, and the strategies against each other.
+template <class S>
+void expectStrategiesAgree(const Model<S>& model, const State<S>& state, const Vec3d& g,
+                           std::initializer_list<ForceStrategy> strategies, int threads) {
+  const Reference<S> ref = referenceAccelerations(model, state, g);
+  std::vector<Vec3Array<S>> results;
+  for (const ForceStrategy strategy : strategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    results.push_back(accelerations(model, state, strategy, g, threads));
+    const Vec3Array<S>& a = results.back();
+    ASSERT_TRUE(a.allFinite());
+    for (Index i = 0; i < model.particleCount(); ++i)
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(static_cast<long double>(a(i, c)), ref.a[i][c], 32 * eps<S>() * ref.scale[i])
+            << "particle " << i << ", component " << c;
+  }
+  for (size_t k = 1; k < results.size(); ++k)
+    for (Index i = 0; i < model.particleCount(); ++i)
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(results[k](i, c), results[0](i, c), 64 * eps<S>() * ref.scale[i])
+            << forceStrategyName(*(strategies.begin() + k)) << " vs " << forceStrategyName(*strategies.begin())
+            << ", particle " << i << ", component " << c;
+}
+
+const Vec3d kGravity{0, -9.81, 0};
+
+TYPED_TEST(ForceFieldTest, AllStrategiesAgreeOnAPerturbedFlag) {
+  using S = TypeParam;
+  ModelAndState<S> flag = makeFlag<S>(16);
+  perturbFree(flag.model, flag.state, 0.2 / 15, 0.5, 7);
+  expectStrategiesAgree(flag.model, flag.state, kGravity,
+                        {ForceStrategy::Gather, ForceStrategy::Coloured, ForceStrategy::GridStencil}, 1);
+}
+
+TYPED_TEST(ForceFieldTest, AllStrategiesAgreeOnALargerFlagWithTwoThreads) {
+  using S = TypeParam;
+  // Large enough for several blocks in every pass (springs > kSpringGrain, particles >
+  // kParticleGrain), so the parallel paths of each strategy run.
+  ModelAndState<S> flag = makeFlag<S>(48);
+  ASSERT_GT(flag.model.springCount(), 2 * ForceField<S>::kSpringGrain);
+  ASSERT_GT(flag.model.particleCount(), 2 * ForceField<S>::kParticleGrain);
+  perturbFree(flag.model, flag.state, 0.2 / 47, 0.5, 8);
+  expectStrategiesAgree(flag.model, flag.state, kGravity,
+                        {ForceStrategy::Gather, ForceStrategy::Coloured, ForceStrategy::GridStencil}, 2);
+}
+
+TYPED_TEST(ForceFieldTest, AllStrategiesAgreeOnAGridWithoutShearOrBendSprings) {
+  using S = TypeParam;
+  for (const bool shear : {false, true}) {
+    ClothGridSpec spec = flagSpec(9);
+    spec.width = 5;  // not square: catches a width/height mix-up
+    spec.shearSprings = shear;
+    spec.bendSprings = !shear;
+    ModelBuilder<S> builder;
+    addClothGrid(builder, spec);
+    builder.pin(3);
+    ModelAndState<S> grid = builder.build();
+    perturbFree(grid.model, grid.state, 0.02, 0.5, 9);
+    expectStrategiesAgree(grid.model, grid.state, kGravity,
+                          {ForceStrategy::Gather, ForceStrategy::Coloured, ForceStrategy::GridStencil}, 1);
+  }
+}
+
+TYPED_TEST(ForceFieldTest, AllStrategiesAgreeOnGridsOfEveryShape) {
+  using S = TypeParam;
+  // Shapes that stress the grid stencil's bookkeeping: the smallest grids, one row or
+  // column of bend springs, a width beyond one stencil chunk, a tall narrow grid over
+  // several chunks, a height that is not a multiple of the chunk; each with every subset
+  // of the optional spring classes (2, 4 or 6 families). Two threads, so chunks run in
+  // parallel.
+  struct Shape {
+    Index w, h;
+  };
+  for (const Shape shape :
+       {Shape{2, 2}, Shape{2, 7}, Shape{7, 2}, Shape{3, 3}, Shape{3, 1000}, Shape{50, 97}, Shape{2100, 3}})
+    for (const int classes : {0, 1, 2, 3}) {
+      SCOPED_TRACE(::testing::Message() << shape.w << " x " << shape.h << ", shear " << (classes & 1) << ", bend "
+                                        << (classes >> 1));
+      ClothGridSpec spec = flagSpec(8);
+      spec.width = shape.w;
+      spec.height = shape.h;
+      spec.spacing = 0.05;
+      spec.shearSprings = classes & 1;
+      spec.bendSprings = classes & 2;
+      ModelBuilder<S> builder;
+      addClothGrid(builder, spec);
+      builder.pin(0);
+      ModelAndState<S> grid = builder.build();
+      perturbFree(grid.model, grid.state, 0.01, 0.5, 14 + classes);
+      expectStrategiesAgree(grid.model, grid.state, kGravity,
+                            {ForceStrategy::Gather, ForceStrategy::Coloured, ForceStrategy::GridStencil}, 2);
+      if (testing::Test::HasFatalFailure()) return;
+    }
+}
+
+TYPED_TEST(ForceFieldTest, RepeatedCallsGiveTheSameResult) {
+  using S = TypeParam;
+  // Scratch buffers are reused between calls: a second call (after one at other
+  // positions) must not see anything left over from the first.
+  ModelAndState<S> flag = makeFlag<S>(48);
+  ModelAndState<S> other = makeFlag<S>(48);
+  perturbFree(flag.model, flag.state, 0.004, 0.5, 15);
+  perturbFree(other.model, other.state, 0.004, 0.5, 16);
+  const Executor exec(2);
+  for (const ForceStrategy strategy : kGridStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    ForceField<S> field(flag.model, strategy, kGravity);
+    Vec3Array<S> first(flag.model.particleCount(), 3), scratch(flag.model.particleCount(), 3),
+        second(flag.model.particleCount(), 3);
+    field.accelerations(flag.state.x, flag.state.v, first, exec);
+    field.accelerations(other.state.x, other.state.v, scratch, exec);
+    field.accelerations(flag.state.x, flag.state.v, second, exec);
+    EXPECT_TRUE(first == second);
+  }
+}
+
+TYPED_TEST(ForceFieldTest, SinkSeesEveryParticleOnceWithTheSameAccelerations) {
+  using S = TypeParam;
+  // The block interface the integrators use: each particle handed over exactly once per
+  // evaluation, in blocks of at most kSinkBlock, with the values of the array interface.
+  ModelAndState<S> flag = makeFlag<S>(48);
+  perturbFree(flag.model, flag.state, 0.004, 0.5, 17);
+  ModelAndState<S> rope = makeRope<S>(300);
+  perturbFree(rope.model, rope.state, 0.002, 0.5, 18);
+  const Executor exec(2);
+  for (const ForceStrategy strategy : kGridStrategies)
+    for (const ModelAndState<S>* m : {&flag, &rope}) {
+      if (strategy == ForceStrategy::GridStencil && !m->model.grid()) continue;
+      SCOPED_TRACE(::testing::Message() << forceStrategyName(strategy) << ", " << m->model.particleCount()
+                                        << " particles");
+      const Index count = m->model.particleCount();
+      ForceField<S> field(m->model, strategy, kGravity);
+      Vec3Array<S> expected(count, 3);
+      field.accelerations(m->state.x, m->state.v, expected, exec);
+      Vec3Array<S> got = Vec3Array<S>::Constant(count, 3, S(-12345));
+      std::vector<std::atomic<int>> seen(static_cast<size_t>(count));
+      std::atomic<int> oversized{0}, outOfRange{0};
+      auto consume = [&](Index begin, Index len, const S* ax, const S* ay, const S* az) {
+        if (len > ForceField<S>::kSinkBlock) ++oversized;
+        if (begin < 0 || len < 0 || begin + len > count) {
+          ++outOfRange;
+          return;
+        }
+        for (Index t = 0; t < len; ++t) {
+          ++seen[static_cast<size_t>(begin + t)];
+          got(begin + t, 0) = ax[t];
+          got(begin + t, 1) = ay[t];
+          got(begin + t, 2) = az[t];
+        }
+      };
+      field.accelerations(m->state.x, m->state.v, makeSink<S>(consume), exec);
+      EXPECT_EQ(oversized.load(), 0);
+      ASSERT_EQ(outOfRange.load(), 0);
+      for (Index i = 0; i < count; ++i) ASSERT_EQ(seen[static_cast<size_t>(i)].load(), 1) << "particle " << i;
+      EXPECT_TRUE(got == expected);
+    }
+}
+
+TYPED_TEST(ForceFieldTest, GridWithAnExtraSpringKeepsEverySpring) {
+  using S = TypeParam;
+  // A cloth grid plus one spring of the user's own (a tether across the cloth): whatever
+  // strategy Auto picks must include it.
+  ModelBuilder<S> builder;
+  addClothGrid(builder, flagSpec(6));
+  builder.addSpring(0, 35, {300, 0.1}, SpringClass::Structural, 0.5);
+  ModelAndState<S> m = builder.build();
+  perturbFree(m.model, m.state, 0.02, 0.5, 10);
+  expectStrategiesAgree(m.model, m.state, kGravity,
+                        {ForceStrategy::Auto, ForceStrategy::Gather, ForceStrategy::Coloured}, 1);
+}
+
+TYPED_TEST(ForceFieldTest, GatherAndColouredAgreeOnARope) {
+  using S = TypeParam;
+  ModelAndState<S> rope = makeRope<S>(40);
+  perturbFree(rope.model, rope.state, 0.01, 0.5, 11);
+  expectStrategiesAgree(rope.model, rope.state, kGravity, {ForceStrategy::Gather, ForceStrategy::Coloured}, 1);
+}
+
+TYPED_TEST(ForceFieldTest, GatherAndColouredAgreeOnAnIrregularModel) {
+  using S = TypeParam;
+  // Random springs between random particles, including several springs on the same pair.
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::uniform_int_distribution<Index> pick(0, 29);
+  ModelBuilder<S> builder;
+  for (int i = 0; i < 30; ++i)
+    builder.addParticle({u(rng), u(rng), u(rng)}, 0.1 + 0.05 * (i % 7), {u(rng), u(rng), u(rng)});
+  for (int s = 0; s < 200; ++s) {
+    const Index a = pick(rng);
+    Index b = pick(rng);
+    if (b == a) b = (a + 1) % 30;
+    builder.addSpring(a, b, {50 + 50 * u(rng), 0.5 + 0.4 * u(rng)}, SpringClass::Structural, 0.5 + 0.3 * u(rng));
+  }
+  builder.pin(4);
+  ModelAndState<S> m = builder.build();
+  expectStrategiesAgree(m.model, m.state, kGravity, {ForceStrategy::Gather, ForceStrategy::Coloured}, 1);
+}
+
+TYPED_TEST(ForceFieldTest, ColouringIsProper) {
+  using S = TypeParam;
+  const ModelAndState<S> flag = makeFlag<S>(16);
+  ForceField<S> coloured(flag.model, ForceStrategy::Coloured, kGravity);
+  // A grid particle has up to 12 springs: a greedy edge colouring needs at most 2*12-1.
+  EXPECT_GE(coloured.colourCount(), 12);
+  EXPECT_LE(coloured.colourCount(), 23);
+  ForceField<S> gather(flag.model, ForceStrategy::Gather, kGravity);
+  EXPECT_EQ(gather.colourCount(), 0);
+  EXPECT_EQ(gather.springEvaluations(), flag.model.springCount());
+}
+
+TYPED_TEST(ForceFieldTest, AutoPicksGridStencilForGridsAndGatherOtherwise) {
+  using S = TypeParam;
+  const ModelAndState<S> flag = makeFlag<S>(8);
+  const ModelAndState<S> rope = makeRope<S>(8);
+  EXPECT_EQ(ForceField<S>(flag.model, ForceStrategy::Auto, kGravity).strategy(), ForceStrategy::GridStencil);
+  EXPECT_EQ(ForceField<S>(rope.model, ForceStrategy::Auto, kGravity).strategy(), ForceStrategy::Gather);
+  EXPECT_EQ(ForceField<S>(flag.model, ForceStrategy::Coloured, kGravity).strategy(), ForceStrategy::Coloured);
+}
+
+TYPED_TEST(ForceFieldTest, GridStencilOnARopeThrows) {
+  using S = TypeParam;
+  const ModelAndState<S> rope = makeRope<S>(8);
+  try {
+    ForceField<S> field(rope.model, ForceStrategy::GridStencil, kGravity);
+    FAIL() << "GridStencil accepted a model without a grid layout";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("grid"), std::string::npos) << e.what();
+  }
+}
+
+TYPED_TEST(ForceFieldTest, PinnedParticlesGetExactlyZeroAcceleration) {
+  using S = TypeParam;
+  ModelAndState<S> flag = makeFlag<S>(16);
+  perturbFree(flag.model, flag.state, 0.2 / 15, 0.5, 13);
+  ASSERT_EQ(flag.model.pinnedCount(), 2);
+  for (const ForceStrategy strategy : kGridStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    const Vec3Array<S> a = accelerations(flag.model, flag.state, strategy, kGravity, 1);
+    for (Index i = 0; i < flag.model.particleCount(); ++i) {
+      if (!flag.model.isPinned(i)) continue;
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(a(i, c), S(0)) << "particle " << i << ", component " << c;
+    }
+  }
+}
+
+TYPED_TEST(ForceFieldTest, WithoutSpringsFreeParticlesGetExactlyGravity) {
+  using S = TypeParam;
+  ModelBuilder<S> builder;
+  for (int i = 0; i < 10; ++i) builder.addParticle({double(i), 0.5 * i, -1.0 * i}, 0.1 * (i + 1), {1, 2, 3});
+  builder.pin(3);
+  const ModelAndState<S> m = builder.build();
+  const Vec3d g{0.5, -9.81, 1.25};
+  for (const ForceStrategy strategy : kGeneralStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    const Vec3Array<S> a = accelerations(m.model, m.state, strategy, g, 1);
+    for (Index i = 0; i < m.model.particleCount(); ++i) {
+      const bool pinned = m.model.isPinned(i);
+      EXPECT_EQ(a(i, 0), pinned ? S(0) : static_cast<S>(g.x)) << "particle " << i;
+      EXPECT_EQ(a(i, 1), pinned ? S(0) : static_cast<S>(g.y)) << "particle " << i;
+      EXPECT_EQ(a(i, 2), pinned ? S(0) : static_cast<S>(g.z)) << "particle " << i;
+    }
+  }
+}
+
+TYPED_TEST(ForceFieldTest, RestingFlagWithoutGravityHasZeroAcceleration) {
+  using S = TypeParam;
+  // At rest length everywhere and with no motion, every spring force is zero (up to the
+  // rounding of the rest positions).
+  const ModelAndState<S> flag = makeFlag<S>(12);
+  for (const ForceStrategy strategy : kGridStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    const Vec3Array<S> a = accelerations(flag.model, flag.state, strategy, Vec3d{0, 0, 0}, 1);
+    const double scale = 500.0 / flag.model.mass()[5] * (1.0 / 11);  // ks / m * spacing
+    EXPECT_LE(static_cast<double>(a.cwiseAbs().maxCoeff()), 64 * eps<S>() * scale);
+  }
+}
+
+TEST(ForceStrategyNames, ParseAndName) {
+  EXPECT_EQ(parseForceStrategy("auto"), ForceStrategy::Auto);
+  EXPECT_EQ(parseForceStrategy("gather"), ForceStrategy::Gather);
+  EXPECT_EQ(parseForceStrategy("coloured"), ForceStrategy::Coloured);
+  EXPECT_EQ(parseForceStrategy("colored"), ForceStrategy::Coloured);
+  EXPECT_EQ(parseForceStrategy("grid"), ForceStrategy::GridStencil);
+  EXPECT_EQ(parseForceStrategy("grid-stencil"), ForceStrategy::GridStencil);
+  for (const ForceStrategy s :
+       {ForceStrategy::Auto, ForceStrategy::Gather, ForceStrategy::Coloured, ForceStrategy::GridStencil})
+    EXPECT_EQ(parseForceStrategy(forceStrategyName(s)), s);
+  try {
+    (void)parseForceStrategy("scatter");
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("scatter"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace weft::test

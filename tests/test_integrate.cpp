@@ -1,0 +1,267 @@
+// tests/test_integrate.cpp — the integrators: order of convergence against an exact
+// solution, conservation of momentum, bounded energy of symplectic Euler.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <vector>
+
+#include "support/test_support.hpp"
+
+namespace weft::test {
+namespace {
+
+template <class C>
+class IntegratorTest : public ::testing::Test {};
+TYPED_TEST_SUITE(IntegratorTest, AllConfigs, ConfigNames);
+
+// ---------------------------------------------------------------------------------------
+// Order of convergence on the damped oscillator
+// ---------------------------------------------------------------------------------------
+
+/// Step counts over the end time T (each twice the previous). Chosen per scalar type and
+/// integrator so that the error is in the asymptotic regime (dt small enough, far below
+/// the stability limit) and far above the rounding error: float RK4 needs large steps,
+/// the first-order methods small ones. omega dt goes from 2 pi T / first down by halves.
+template <class S>
+std::vector<int> stepCounts(IntegratorKind kind) {
+  const bool f = std::is_same_v<S, float>;
+  int first = 0, count = 0;
+  switch (kind) {
+    case IntegratorKind::ExplicitEuler:  // error ~ 0.04 ... 0.005 of the amplitude
+    case IntegratorKind::SymplecticEuler:
+      first = 1280, count = f ? 3 : 4;
+      break;
+    case IntegratorKind::Midpoint:  // error ~ 1e-2 ... 1e-4 (float), ... 1e-5 (double)
+      first = 160, count = f ? 4 : 5;
+      break;
+    case IntegratorKind::Rk4:  // error ~ 1e-2 ... 4e-5 (float: omega dt 0.63 ... 0.16), ... 1e-8 (double)
+      first = f ? 20 : 40, count = f ? 3 : 5;
+      break;
+  }
+  std::vector<int> counts;
+  for (int k = 0; k < count; ++k) counts.push_back(first << k);
+  return counts;
+}
+
+/// Phase-space error at T, relative to the amplitude: |(x - x*, (v - v*) / omega)| / A.
+/// Using both position and velocity keeps the measure away from accidental zeros of one.
+template <class S>
+double oscillatorError(const Oscillator& osc, IntegratorKind kind, double T, int steps) {
+  Simulation<S> sim(osc.build<S>(), osc.options(kind, T / steps));
+  const StepStatus status = sim.run(steps);
+  EXPECT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(sim.stepCount(), steps);
+  const auto [x, v] = osc.exact(T);
+  const State<S>& s = sim.state();
+  // The motion stays on the x axis and the pinned end does not move.
+  EXPECT_EQ(s.x(1, 1), S(0));
+  EXPECT_EQ(s.x(1, 2), S(0));
+  EXPECT_EQ(s.v(1, 1), S(0));
+  EXPECT_EQ(s.v(1, 2), S(0));
+  EXPECT_TRUE(s.x.row(0).isZero(0));
+  EXPECT_TRUE(s.v.row(0).isZero(0));
+  const double dx = static_cast<double>(s.x(1, 0)) - x;
+  const double dv = (static_cast<double>(s.v(1, 0)) - v) / osc.omega;
+  return std::hypot(dx, dv) / osc.amplitude;
+}
+
+TYPED_TEST(IntegratorTest, ConvergesAtItsTheoreticalOrder) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  const Oscillator osc;  // omega = 2 pi, damping ratio ~0.03
+  const double T = 2.0;  // about two periods
+  const int theory = integratorOrder(kind);
+  ASSERT_EQ(theory, kind == IntegratorKind::Rk4 ? 4 : kind == IntegratorKind::Midpoint ? 2 : 1);
+
+  const std::vector<int> counts = stepCounts<S>(kind);
+  std::vector<double> errors;
+  for (const int n : counts) errors.push_back(oscillatorError<S>(osc, kind, T, n));
+
+  std::ostringstream table, orders;
+  for (size_t k = 0; k < counts.size(); ++k) table << "\n  steps " << counts[k] << ": error " << errors[k];
+  for (size_t k = 1; k < counts.size(); ++k) orders << (k > 1 ? " " : "") << std::log2(errors[k - 1] / errors[k]);
+  ::testing::Test::RecordProperty("measured_orders", orders.str());  // in the --gtest_output=xml report
+  for (size_t k = 1; k < counts.size(); ++k) {
+    const double p = std::log2(errors[k - 1] / errors[k]);
+    EXPECT_NEAR(p, theory, 0.2) << "order measured between " << counts[k - 1] << " and " << counts[k] << " steps"
+                                << table.str();
+  }
+  // Sanity: errors are small (the range is the asymptotic one), and decrease.
+  EXPECT_LT(errors.front(), 0.1) << table.str();
+}
+
+TYPED_TEST(IntegratorTest, OscillatorMatchesTheExactSolutionAtAFineStep) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  const Oscillator osc;
+  // A direct check of the exact solution used above (and of the sign conventions of the
+  // damping): at a fine step every integrator is close to it.
+  const int steps = kind == IntegratorKind::Rk4 ? 200 : kind == IntegratorKind::Midpoint ? 1000 : 8000;
+  EXPECT_LT(oscillatorError<S>(osc, kind, 1.0, steps), 0.01);
+}
+
+// ---------------------------------------------------------------------------------------
+// Momentum of a free cloth
+// ---------------------------------------------------------------------------------------
+
+TYPED_TEST(IntegratorTest, FreeClothConservesLinearMomentum) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  // The flag's grid without pins, random velocities (with a net drift), no gravity: the
+  // spring forces come in +f/-f pairs, so sum m v stays what it was.
+  ModelAndState<S> cloth = makeFreeFlag<S>(12);
+  ASSERT_EQ(cloth.model.pinnedCount(), 0);
+  addNoise<S>(cloth.state.v, 0.5, 21);
+  for (Index i = 0; i < cloth.state.v.rows(); ++i) {
+    cloth.state.v(i, 0) += S(0.3);
+    cloth.state.v(i, 1) -= S(0.2);
+    cloth.state.v(i, 2) += S(0.1);
+  }
+  const Model<S>& model = cloth.model;
+  const auto p0 = momentum(model, cloth.state);
+  long double scale = 0;  // sum m |v|: the size of the terms of the momentum sum
+  for (Index i = 0; i < model.particleCount(); ++i)
+    scale += model.mass()[i] * static_cast<long double>(cloth.state.v.row(i).norm());
+
+  SimulationOptions options;
+  options.integrator = kind;
+  options.dt = 5e-5;  // well inside every method's stability region (explicit Euler grows slowly)
+  options.threads = 1;
+  options.gravity = {0, 0, 0};
+  const int steps = 300;
+  Simulation<S> sim(ModelAndState<S>{model, cloth.state}, options);
+  const StepStatus status = sim.run(steps);
+  ASSERT_TRUE(status.ok()) << status.message();
+
+  const auto p1 = momentum(sim.model(), sim.state());
+  // Each step adds rounding of the order of eps per force term; over `steps` steps the
+  // momentum may drift by a few eps * steps relative to its scale.
+  const long double tol = 4 * eps<S>() * steps * scale;
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(p1[c], p0[c], tol) << "axis " << c;
+  // The cloth did move and deform: the test is not vacuous.
+  EXPECT_GT((sim.state().x - cloth.state.x).cwiseAbs().maxCoeff(), S(0.003));
+}
+
+// ---------------------------------------------------------------------------------------
+// Integrator interface
+// ---------------------------------------------------------------------------------------
+
+TYPED_TEST(IntegratorTest, AdvanceLeavesTheInputAloneAndReportsItsWork) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  ModelAndState<S> flag = makeFlag<S>(8);
+  perturbFree(flag.model, flag.state, 0.01, 0.3, 31);
+  const Executor exec(1);
+  ForceField<S> forces(flag.model, ForceStrategy::Gather, {0, -9.81, 0});
+  auto integrator = makeIntegrator<S>(kind, flag.model.particleCount());
+  ASSERT_NE(integrator, nullptr);
+  EXPECT_EQ(integrator->kind(), kind);
+  const Vec3Array<S> x0 = flag.state.x, v0 = flag.state.v;
+  Vec3Array<S> x1(x0.rows(), 3), v1(x0.rows(), 3);
+  const StepWork work = integrator->advance(forces, x0, v0, S(1e-3), x1, v1, exec);
+  EXPECT_EQ(work.forceEvaluations, kind == IntegratorKind::Rk4 ? 4 : kind == IntegratorKind::Midpoint ? 2 : 1);
+  EXPECT_TRUE(x0 == flag.state.x);
+  EXPECT_TRUE(v0 == flag.state.v);
+  EXPECT_TRUE(x1.allFinite() && v1.allFinite());
+  EXPECT_FALSE(x1 == x0);
+  // Pinned particles stay where they are.
+  for (Index i = 0; i < flag.model.particleCount(); ++i)
+    if (flag.model.isPinned(i)) {
+      EXPECT_TRUE(x1.row(i) == x0.row(i)) << "particle " << i;
+      EXPECT_TRUE(v1.row(i).isZero(0)) << "particle " << i;
+    }
+}
+
+TYPED_TEST(IntegratorTest, NameParsesBack) {
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  EXPECT_EQ(parseIntegrator(integratorName(kind)), kind);
+}
+
+TEST(IntegratorNames, UnknownNameThrowsNamingIt) {
+  try {
+    (void)parseIntegrator("verlet");
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("verlet"), std::string::npos) << e.what();
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Symplectic Euler: bounded energy
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+class SymplecticEnergy : public ::testing::Test {};
+TYPED_TEST_SUITE(SymplecticEnergy, ScalarTypes);
+
+struct EnergyRun {
+  double maxDeviation = 0;    // max |E - E0| / E0 over the run
+  double firstWindowMax = 0;  // max |E - E0| / E0 over the first tenth of the run
+  double lastWindowMax = 0;   // ... over the last tenth
+  double modifiedDrift = 0;   // max |H~ - H~0| / H~0 (H~: the method's exact invariant, see below)
+  StepStatus status;
+};
+
+template <class S>
+EnergyRun runUndampedOscillator(IntegratorKind kind, double omegaDt, int steps) {
+  Oscillator osc;
+  osc.damping = 0;
+  const double h = omegaDt / osc.omega;
+  Simulation<S> sim(osc.build<S>(), osc.options(kind, h));
+  const double k = osc.stiffness(), m = osc.mass;
+  const auto energy = [&] {
+    const double u = static_cast<double>(sim.state().x(1, 0)) - osc.rest;
+    const double v = static_cast<double>(sim.state().v(1, 0));
+    return 0.5 * m * v * v + 0.5 * k * u * u;
+  };
+  // For v' = v - h w^2 u, u' = u + h v' the quadratic form v^2 + w^2 u^2 - h w^2 u v is
+  // exactly invariant (in exact arithmetic): no drift of it at all is allowed.
+  const auto modified = [&] {
+    const double u = static_cast<double>(sim.state().x(1, 0)) - osc.rest;
+    const double v = static_cast<double>(sim.state().v(1, 0));
+    const double w2 = osc.omega * osc.omega;
+    return v * v + w2 * u * u - h * w2 * u * v;
+  };
+  const double e0 = energy(), q0 = modified();
+  EnergyRun r;
+  const int window = steps / 10;
+  for (int n = 1; n <= steps; ++n) {
+    r.status = sim.step();
+    if (!r.status.ok()) return r;
+    const double dev = std::abs(energy() - e0) / e0;
+    r.maxDeviation = std::max(r.maxDeviation, dev);
+    if (n <= window) r.firstWindowMax = std::max(r.firstWindowMax, dev);
+    if (n > steps - window) r.lastWindowMax = std::max(r.lastWindowMax, dev);
+    r.modifiedDrift = std::max(r.modifiedDrift, std::abs(modified() - q0) / q0);
+  }
+  return r;
+}
+
+TYPED_TEST(SymplecticEnergy, StaysBoundedOverTenThousandSteps) {
+  using S = TypeParam;
+  const double omegaDt = 0.1;  // stability limit omega dt < 2
+  const EnergyRun r = runUndampedOscillator<S>(IntegratorKind::SymplecticEuler, omegaDt, 10000);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  // The energy oscillates with relative amplitude about omega dt / 2 and does not grow.
+  EXPECT_LT(r.maxDeviation, 0.6 * omegaDt);
+  EXPECT_GT(r.firstWindowMax, 0.3 * omegaDt) << "the expected O(omega dt) oscillation is missing";
+  EXPECT_LT(r.lastWindowMax, r.firstWindowMax * 1.02 + 100 * eps<S>());
+  // The method's own invariant only moves by rounding (random walk over 10^4 steps).
+  EXPECT_LT(r.modifiedDrift, 2e4 * eps<S>());
+}
+
+TYPED_TEST(SymplecticEnergy, ExplicitEulerOnTheSameOscillatorGainsEnergy) {
+  using S = TypeParam;
+  // The contrast that shows the bound above means something: at the same step, explicit
+  // Euler multiplies the energy by (1 + (omega dt)^2) per step.
+  // 100 steps: 1.01^100 ~ 2.7, and the amplitude stays below the rest length, so the
+  // motion is still the linear oscillator the energy is computed for.
+  const EnergyRun r = runUndampedOscillator<S>(IntegratorKind::ExplicitEuler, 0.1, 100);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_GT(r.lastWindowMax, 1.5);
+}
+
+}  // namespace
+}  // namespace weft::test

@@ -1,0 +1,522 @@
+// tests/test_model.cpp — ModelBuilder validation, rope and cloth-grid builders, Model.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "support/test_support.hpp"
+#include "weft/effects/force_field.hpp"
+
+namespace weft::test {
+namespace {
+
+template <class S>
+class ModelTest : public ::testing::Test {};
+TYPED_TEST_SUITE(ModelTest, ScalarTypes);
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+/// Expects f() to throw std::invalid_argument whose message contains `field` and `value`
+/// (the value compared case-insensitively, so "nan" matches "NaN" and "-nan").
+void expectInvalid(const std::function<void()>& f, const std::string& field, const std::string& value) {
+  try {
+    f();
+    ADD_FAILURE() << "no std::invalid_argument thrown (expected one naming '" << field << "' and '" << value << "')";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(field), std::string::npos) << "message does not name the field '" << field << "': " << what;
+    EXPECT_NE(lower(what).find(lower(value)), std::string::npos)
+        << "message does not name the value '" << value << "': " << what;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "threw something other than std::invalid_argument: " << e.what();
+  }
+}
+
+ClothGridSpec gridSpec(Index w, Index h) {
+  ClothGridSpec spec;
+  spec.width = w;
+  spec.height = h;
+  spec.spacing = 0.1;
+  return spec;
+}
+
+struct GridSize {
+  Index w, h;
+};
+constexpr GridSize kGridSizes[] = {{2, 2}, {3, 5}, {7, 4}, {64, 64}};
+
+// ---------------------------------------------------------------------------------------
+// Cloth grid
+// ---------------------------------------------------------------------------------------
+
+TYPED_TEST(ModelTest, GridSpringCountsPerClass) {
+  using S = TypeParam;
+  for (const GridSize g : kGridSizes)
+    for (const bool shear : {true, false})
+      for (const bool bend : {true, false}) {
+        SCOPED_TRACE(::testing::Message() << g.w << " x " << g.h << (shear ? " +shear" : "") << (bend ? " +bend" : ""));
+        ClothGridSpec spec = gridSpec(g.w, g.h);
+        spec.shearSprings = shear;
+        spec.bendSprings = bend;
+        ModelBuilder<S> builder;
+        addClothGrid(builder, spec);
+        const ModelAndState<S> built = builder.build();
+        const Model<S>& model = built.model;
+
+        const Index w = g.w, h = g.h;
+        const Index structural = (w - 1) * h + w * (h - 1);
+        const Index shearCount = shear ? 2 * (w - 1) * (h - 1) : 0;
+        const Index bendCount = bend ? (w - 2) * h + w * (h - 2) : 0;
+        const std::array<Index, kSpringClassCount> formula{structural, shearCount, bendCount};
+
+        EXPECT_EQ(model.particleCount(), w * h);
+        EXPECT_EQ(model.springCountByClass(), formula);
+        EXPECT_EQ(model.springCountByClass(), expectedGridSpringCounts(spec));
+        EXPECT_EQ(expectedGridSpringCounts(spec), formula);
+        EXPECT_EQ(model.springCount(), structural + shearCount + bendCount);
+        EXPECT_EQ(model.pinnedCount(), 0);
+      }
+}
+
+TYPED_TEST(ModelTest, GridSpringsJoinTheRightNeighbours) {
+  using S = TypeParam;
+  const ClothGridSpec spec = gridSpec(7, 4);
+  ModelBuilder<S> builder;
+  addClothGrid(builder, spec);
+  const ModelAndState<S> built = builder.build();
+  const Springs<S>& sp = built.model.springs();
+  for (Index s = 0; s < sp.count(); ++s) {
+    const Index ra = sp.a[s] / spec.width, ca = sp.a[s] % spec.width;
+    const Index rb = sp.b[s] / spec.width, cb = sp.b[s] % spec.width;
+    const Index dr = rb - ra, dc = cb - ca;
+    switch (sp.kind[s]) {
+      case SpringClass::Structural:
+        EXPECT_TRUE((dr == 0 && dc == 1) || (dr == 1 && dc == 0)) << "spring " << s;
+        break;
+      case SpringClass::Shear:
+        EXPECT_TRUE(dr == 1 && (dc == 1 || dc == -1)) << "spring " << s;
+        break;
+      case SpringClass::Bend:
+        EXPECT_TRUE((dr == 0 && dc == 2) || (dr == 2 && dc == 0)) << "spring " << s;
+        break;
+    }
+  }
+}
+
+TYPED_TEST(ModelTest, GridMaterialsPerClass) {
+  using S = TypeParam;
+  const ClothGridSpec spec = gridSpec(5, 5);
+  ModelBuilder<S> builder;
+  addClothGrid(builder, spec);
+  const ModelAndState<S> built = builder.build();
+  const Springs<S>& sp = built.model.springs();
+  for (Index s = 0; s < sp.count(); ++s) {
+    const SpringMaterial& m = sp.kind[s] == SpringClass::Structural ? spec.structural
+                              : sp.kind[s] == SpringClass::Shear    ? spec.shear
+                                                                    : spec.bend;
+    EXPECT_EQ(sp.stiffness[s], static_cast<S>(m.stiffness)) << "spring " << s;
+    EXPECT_EQ(sp.damping[s], static_cast<S>(m.damping)) << "spring " << s;
+  }
+  // Mass spread evenly.
+  for (Index i = 0; i < built.model.particleCount(); ++i)
+    EXPECT_EQ(built.model.mass()[i], static_cast<S>(spec.totalMass / 25)) << "particle " << i;
+}
+
+TYPED_TEST(ModelTest, RestLengthsEqualInitialDistances) {
+  using S = TypeParam;
+  // Orthonormal but not axis-aligned frame, so the check is not trivially exact.
+  ClothGridSpec spec = gridSpec(9, 6);
+  spec.origin = {0.3, -1.2, 2.0};
+  spec.rowAxis = {3, 4, 0};
+  spec.columnAxis = {0, 0, -2};
+  spec.spacing = 0.07;
+  ModelBuilder<S> grid;
+  addClothGrid(grid, spec);
+
+  RopeSpec rope;
+  rope.particleCount = 11;
+  rope.origin = {1, 2, 3};
+  rope.direction = {1, -2, 2};
+  rope.length = 0.8;
+  ModelBuilder<S> chain;
+  addRope(chain, rope);
+
+  // A spring added without a rest length takes the current distance.
+  ModelBuilder<S> free;
+  free.addParticle({0.1, 0.2, 0.3}, 1);
+  free.addParticle({-0.4, 0.9, 1.3}, 1);
+  free.addParticle({2.0, 0.0, -0.5}, 1);
+  free.addSpring(0, 1, {10, 0});
+  free.addSpring(2, 1, {10, 0}, SpringClass::Bend);
+
+  for (ModelBuilder<S>* b : {&grid, &chain, &free}) {
+    const ModelAndState<S> built = b->build();
+    const Springs<S>& sp = built.model.springs();
+    const double scale = std::max(1.0, static_cast<double>(built.state.x.cwiseAbs().maxCoeff()));
+    ASSERT_GT(sp.count(), 0);
+    for (Index s = 0; s < sp.count(); ++s) {
+      const double d =
+          (built.state.x.row(sp.a[s]).template cast<double>() - built.state.x.row(sp.b[s]).template cast<double>())
+              .norm();
+      EXPECT_NEAR(static_cast<double>(sp.restLength[s]), d, 16 * eps<S>() * scale) << "spring " << s;
+    }
+  }
+}
+
+TYPED_TEST(ModelTest, GridRecordsItsLayout) {
+  using S = TypeParam;
+  for (const GridSize g : kGridSizes) {
+    SCOPED_TRACE(::testing::Message() << g.w << " x " << g.h);
+    ClothGridSpec spec = gridSpec(g.w, g.h);
+    ModelBuilder<S> builder;
+    addClothGrid(builder, spec);
+    const ModelAndState<S> built = builder.build();
+    const Model<S>& model = built.model;
+    ASSERT_TRUE(model.grid().has_value());
+    const GridLayout<S>& layout = *model.grid();
+    EXPECT_EQ(layout.width, g.w);
+    EXPECT_EQ(layout.height, g.h);
+    // Right, down, two diagonals, and the two bend families when the grid is wide/tall enough.
+    const size_t expectedFamilies = 4 + (g.w > 2 ? 1 : 0) + (g.h > 2 ? 1 : 0);
+    EXPECT_EQ(layout.families.size(), expectedFamilies);
+    Index covered = 0;
+    for (const GridFamily<S>& f : layout.families) {
+      SCOPED_TRACE(::testing::Message() << "family (" << f.rowOffset << ", " << f.columnOffset << ")");
+      EXPECT_GT(f.springCount, 0);
+      EXPECT_EQ(f.firstSpring, covered);  // families are contiguous and in order
+      covered += f.springCount;
+      for (Index s = f.firstSpring; s < f.firstSpring + f.springCount; ++s) {
+        EXPECT_EQ(model.springs().b[s] - model.springs().a[s], f.rowOffset * g.w + f.columnOffset);
+        EXPECT_EQ(model.springs().restLength[s], f.restLength);
+        EXPECT_EQ(model.springs().stiffness[s], f.stiffness);
+        EXPECT_EQ(model.springs().damping[s], f.damping);
+      }
+    }
+    EXPECT_EQ(covered, model.springCount());
+  }
+}
+
+TYPED_TEST(ModelTest, GridIndexIsRowMajor) {
+  const ClothGridSpec spec = gridSpec(7, 4);
+  EXPECT_EQ(gridIndex(spec, 0, 0), 0);
+  EXPECT_EQ(gridIndex(spec, 0, 6), 6);
+  EXPECT_EQ(gridIndex(spec, 1, 0), 7);
+  EXPECT_EQ(gridIndex(spec, 3, 6), 27);
+}
+
+// ---------------------------------------------------------------------------------------
+// Rope
+// ---------------------------------------------------------------------------------------
+
+TYPED_TEST(ModelTest, RopeSpringCounts) {
+  using S = TypeParam;
+  for (const Index n : {2, 3, 10, 64})
+    for (const bool bend : {true, false}) {
+      SCOPED_TRACE(::testing::Message() << n << " particles" << (bend ? " +bend" : ""));
+      RopeSpec spec;
+      spec.particleCount = n;
+      spec.bendSprings = bend;
+      ModelBuilder<S> builder;
+      addRope(builder, spec);
+      const ModelAndState<S> built = builder.build();
+      const std::array<Index, kSpringClassCount> expected{n - 1, 0, bend ? n - 2 : 0};
+      EXPECT_EQ(built.model.particleCount(), n);
+      EXPECT_EQ(built.model.springCountByClass(), expected);
+      EXPECT_FALSE(built.model.grid().has_value());
+      const Springs<S>& sp = built.model.springs();
+      for (Index s = 0; s < sp.count(); ++s)
+        EXPECT_EQ(sp.b[s] - sp.a[s], sp.kind[s] == SpringClass::Structural ? 1 : 2) << "spring " << s;
+    }
+}
+
+TYPED_TEST(ModelTest, HandBuiltModelHasNoGrid) {
+  using S = TypeParam;
+  ModelBuilder<S> builder;
+  builder.addParticle({0, 0, 0}, 1);
+  builder.addParticle({1, 0, 0}, 1);
+  builder.addSpring(0, 1, {1, 0});
+  EXPECT_FALSE(builder.build().model.grid().has_value());
+}
+
+// ---------------------------------------------------------------------------------------
+// Particles, pins, build()
+// ---------------------------------------------------------------------------------------
+
+TYPED_TEST(ModelTest, PinZeroesInverseMassAndKeepsMass) {
+  using S = TypeParam;
+  ModelBuilder<S> builder;
+  builder.addParticle({0, 0, 0}, 2.0, {1, 2, 3});
+  builder.addParticle({1, 0, 0}, 0.25, {4, 5, 6});
+  builder.addParticle({2, 0, 0}, 4.0);
+  builder.pin(0);
+  builder.pin(0);  // pinning twice is harmless
+  builder.pin(2);
+  const ModelAndState<S> built = builder.build();
+  const Model<S>& model = built.model;
+  EXPECT_EQ(model.mass()[0], S(2));
+  EXPECT_EQ(model.mass()[1], S(0.25));
+  EXPECT_EQ(model.mass()[2], S(4));
+  EXPECT_EQ(model.inverseMass()[0], S(0));
+  EXPECT_EQ(model.inverseMass()[1], S(4));
+  EXPECT_EQ(model.inverseMass()[2], S(0));
+  EXPECT_TRUE(model.isPinned(0));
+  EXPECT_FALSE(model.isPinned(1));
+  EXPECT_TRUE(model.isPinned(2));
+  EXPECT_EQ(model.pinnedCount(), 2);
+  // A pinned particle does not move: its initial velocity is zero; others keep theirs.
+  EXPECT_TRUE(built.state.v.row(0).isZero(0));
+  EXPECT_EQ(built.state.v(1, 0), S(4));
+  EXPECT_EQ(built.state.v(1, 2), S(6));
+  EXPECT_EQ(built.state.x(2, 0), S(2));
+  EXPECT_EQ(built.state.time, 0.0);
+}
+
+TYPED_TEST(ModelTest, BuildEmptiesTheBuilder) {
+  using S = TypeParam;
+  ModelBuilder<S> builder;
+  builder.addParticle({0, 0, 0}, 1);
+  builder.addParticle({1, 0, 0}, 1);
+  builder.addSpring(0, 1, {1, 0});
+  (void)builder.build();
+  EXPECT_EQ(builder.particleCount(), 0);
+  EXPECT_EQ(builder.springCount(), 0);
+  expectInvalid([&] { (void)builder.build(); }, "no particles", "");
+}
+
+TYPED_TEST(ModelTest, ExplicitRestLengthIsKept) {
+  using S = TypeParam;
+  ModelBuilder<S> builder;
+  builder.addParticle({0, 0, 0}, 1);
+  builder.addParticle({3, 4, 0}, 1);
+  builder.addSpring(0, 1, {1, 0}, SpringClass::Structural, 2.5);
+  builder.addSpring(1, 0, {1, 0}, SpringClass::Structural, 0);  // zero rest length is allowed
+  builder.addSpring(0, 1, {1, 0});
+  const ModelAndState<S> built = builder.build();
+  EXPECT_EQ(built.model.springs().restLength[0], S(2.5));
+  EXPECT_EQ(built.model.springs().restLength[1], S(0));
+  EXPECT_EQ(built.model.springs().restLength[2], S(5));
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad input: std::invalid_argument naming the field and the value
+// ---------------------------------------------------------------------------------------
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+TYPED_TEST(ModelTest, BadParticlesThrow) {
+  using S = TypeParam;
+  ModelBuilder<S> b;
+  expectInvalid([&] { b.addParticle({0, 0, 0}, 0.0); }, "mass", "0");
+  expectInvalid([&] { b.addParticle({0, 0, 0}, -2.5); }, "mass", "-2.5");
+  expectInvalid([&] { b.addParticle({0, 0, 0}, kNaN); }, "mass", "nan");
+  expectInvalid([&] { b.addParticle({0, 0, 0}, kInf); }, "mass", "inf");
+  expectInvalid([&] { b.addParticle({kNaN, 0, 0}, 1.0); }, "position.x", "nan");
+  expectInvalid([&] { b.addParticle({0, kInf, 0}, 1.0); }, "position.y", "inf");
+  expectInvalid([&] { b.addParticle({0, 0, -kInf}, 1.0); }, "position.z", "-inf");
+  expectInvalid([&] { b.addParticle({0, 0, 0}, 1.0, {0, kNaN, 0}); }, "velocity.y", "nan");
+  EXPECT_EQ(b.particleCount(), 0) << "a rejected particle must not be added";
+}
+
+TYPED_TEST(ModelTest, BadSpringsThrow) {
+  using S = TypeParam;
+  ModelBuilder<S> b;
+  b.addParticle({0, 0, 0}, 1);
+  b.addParticle({1, 0, 0}, 1);
+  expectInvalid([&] { b.addSpring(0, 5, {1, 0}); }, "particle index", "5");
+  expectInvalid([&] { b.addSpring(-1, 1, {1, 0}); }, "particle index", "-1");
+  expectInvalid([&] { b.addSpring(1, 1, {1, 0}); }, "endpoint", "1");
+  expectInvalid([&] { b.addSpring(0, 1, {-3, 0}); }, "stiffness", "-3");
+  expectInvalid([&] { b.addSpring(0, 1, {kNaN, 0}); }, "stiffness", "nan");
+  expectInvalid([&] { b.addSpring(0, 1, {1, kNaN}); }, "damping", "nan");
+  expectInvalid([&] { b.addSpring(0, 1, {1, -0.5}); }, "damping", "-0.5");
+  expectInvalid([&] { b.addSpring(0, 1, {1, 0}, SpringClass::Structural, kInf); }, "restLength", "inf");
+  expectInvalid([&] { b.pin(2); }, "particle index", "2");
+  EXPECT_EQ(b.springCount(), 0) << "a rejected spring must not be added";
+}
+
+TYPED_TEST(ModelTest, MassTooSmallForThePrecisionThrows) {
+  using S = TypeParam;
+  // A positive finite mass whose inverse overflows S: 2^-130 in float, 2^-1030 in double.
+  const bool isFloat = std::is_same_v<S, float>;
+  const double tiny = std::ldexp(1.0, isFloat ? -130 : -1030);
+  ModelBuilder<S> b;
+  b.addParticle({0, 0, 0}, tiny);
+  expectInvalid([&] { (void)b.build(); }, "mass of particle [0]", isFloat ? "e-40" : "e-311");
+}
+
+TYPED_TEST(ModelTest, BadRopeSpecsThrow) {
+  using S = TypeParam;
+  RopeSpec spec;
+  spec.particleCount = 1;
+  ModelBuilder<S> b;
+  expectInvalid([&] { addRope(b, spec); }, "particleCount", "1");
+  spec = RopeSpec{};
+  spec.length = 0;
+  expectInvalid([&] { addRope(b, spec); }, "length", "0");
+  spec = RopeSpec{};
+  spec.totalMass = -1;
+  expectInvalid([&] { addRope(b, spec); }, "totalMass", "-1");
+  spec = RopeSpec{};
+  spec.direction = {0, 0, 0};
+  expectInvalid([&] { addRope(b, spec); }, "direction", "");
+  EXPECT_EQ(b.particleCount(), 0);
+}
+
+TYPED_TEST(ModelTest, BadGridSpecsThrow) {
+  using S = TypeParam;
+  ModelBuilder<S> b;
+  ClothGridSpec spec = gridSpec(1, 4);
+  expectInvalid([&] { addClothGrid(b, spec); }, "width", "1");
+  spec = gridSpec(4, 0);
+  expectInvalid([&] { addClothGrid(b, spec); }, "height", "0");
+  spec = gridSpec(4, 4);
+  spec.spacing = 0;
+  expectInvalid([&] { addClothGrid(b, spec); }, "spacing", "0");
+  spec.spacing = -0.5;
+  expectInvalid([&] { addClothGrid(b, spec); }, "spacing", "-0.5");
+  spec.spacing = kNaN;
+  expectInvalid([&] { addClothGrid(b, spec); }, "spacing", "nan");
+  spec = gridSpec(4, 4);
+  spec.totalMass = 0;
+  expectInvalid([&] { addClothGrid(b, spec); }, "totalMass", "0");
+  spec = gridSpec(4, 4);
+  spec.rowAxis = {0, 0, 0};
+  expectInvalid([&] { addClothGrid(b, spec); }, "rowAxis", "");
+  EXPECT_EQ(b.particleCount(), 0);
+
+  // The grid layout indexes from particle 0: the builder must be empty.
+  b.addParticle({0, 0, 0}, 1);
+  expectInvalid([&] { addClothGrid(b, gridSpec(3, 3)); }, "empty", "");
+}
+
+TYPED_TEST(ModelTest, InconsistentGridLayoutIsRejectedAtBuild) {
+  using S = TypeParam;
+  // A layout that does not describe the springs would make GridStencil compute wrong
+  // forces, so build() checks it.
+  ModelBuilder<S> c;
+  for (int i = 0; i < 6; ++i) c.addParticle({double(i % 3), double(i / 3), 0}, 1);
+  c.addSpring(0, 1, {1, 0});
+  GridLayout<S> layout;
+  layout.width = 3;
+  layout.height = 2;
+  GridFamily<S> right;
+  right.rowOffset = 0;
+  right.columnOffset = 1;
+  right.restLength = 1;
+  right.stiffness = 1;
+  right.firstSpring = 0;
+  right.springCount = 4;  // claims springs that are not there
+  layout.families.push_back(right);
+  c.setGridLayout(layout);
+  expectInvalid([&] { (void)c.build(); }, "grid layout", "");
+
+  ModelBuilder<S> d;
+  d.addParticle({0, 0, 0}, 1);
+  GridLayout<S> wrongSize;
+  wrongSize.width = 2;
+  wrongSize.height = 2;
+  d.setGridLayout(wrongSize);
+  expectInvalid([&] { (void)d.build(); }, "particle count", "1");
+}
+
+TYPED_TEST(ModelTest, GridWithExtraSpringsIsNotARegularGrid) {
+  using S = TypeParam;
+  // The grid stencil evaluates the families' springs only. A cloth grid with a spring of
+  // the user's own (a tether) is a valid model, but not a regular grid: it must not carry
+  // a layout, or the GridStencil strategy (Auto's choice for grids) would drop the spring.
+  ModelBuilder<S> b;
+  addClothGrid(b, gridSpec(4, 3));
+  b.addSpring(0, 11, {1, 0});
+  const ModelAndState<S> built = b.build();
+  EXPECT_EQ(built.model.springCount(), expectedGridSpringCounts(gridSpec(4, 3))[0] +
+                                           expectedGridSpringCounts(gridSpec(4, 3))[1] +
+                                           expectedGridSpringCounts(gridSpec(4, 3))[2] + 1);
+  EXPECT_FALSE(built.model.grid().has_value());
+
+  // The same for a layout that lists one family twice (its springs would count twice).
+  ModelBuilder<S> c;
+  addClothGrid(c, gridSpec(3, 3));
+  ModelBuilder<S> probe;
+  addClothGrid(probe, gridSpec(3, 3));
+  GridLayout<S> twice = *probe.build().model.grid();
+  twice.families.push_back(twice.families.front());
+  c.setGridLayout(twice);
+  EXPECT_FALSE(c.build().model.grid().has_value());
+}
+
+TYPED_TEST(ModelTest, ValuesOutsideThePrecisionAreRejected) {
+  using S = TypeParam;
+  // 1e300 fits a double but not a float; 1e308 * 10 is inf in both (rejected earlier, as
+  // not finite). Converting an out-of-range double to float would be undefined behaviour.
+  if constexpr (sizeof(S) == 4) {
+    expectInvalid(
+        [] {
+          ModelBuilder<S> b;
+          b.addParticle({0, 1e300, 0}, 1);
+          b.build();
+        },
+        "position.y of particle [0]", "1e+300");
+    expectInvalid(
+        [] {
+          ModelBuilder<S> b;
+          b.addParticle({0, 0, 0}, 1);
+          b.addParticle({1, 0, 0}, 1);
+          b.addSpring(0, 1, {1e300, 0});
+          b.build();
+        },
+        "stiffness of spring [0]", "1e+300");
+  } else {
+    ModelBuilder<S> b;
+    b.addParticle({0, 1e300, 0}, 1);
+    EXPECT_NO_THROW(b.build());
+  }
+}
+
+TYPED_TEST(ModelTest, SkewedGridStartsAtRest) {
+  using S = TypeParam;
+  // Non-orthogonal axes: every spring's rest length is its initial length, so with no
+  // gravity nothing accelerates (within rounding).
+  ClothGridSpec spec = gridSpec(6, 5);
+  spec.rowAxis = {1, 0, 0};
+  spec.columnAxis = {0.5, 0, 1};
+  ModelBuilder<S> b;
+  addClothGrid(b, spec);
+  const ModelAndState<S> built = b.build();
+  ASSERT_TRUE(built.model.grid().has_value());
+  Executor exec(1);
+  ForceField<S> forces(built.model, ForceStrategy::GridStencil, {0, 0, 0});
+  Vec3Array<S> a(built.model.particleCount(), 3);
+  forces.accelerations(built.state.x, built.state.v, a, exec);
+  // Rounding scale: ks * spacing * (1/m) * 1000 eps (about 0.6 m/s^2 in float). Lattice
+  // rest lengths on these axes would be off by ~12% of the spacing: ~600 m/s^2.
+  const double w = static_cast<double>(built.model.inverseMass()[0]);
+  const double bound = 1e3 * static_cast<double>(eps<S>()) * spec.structural.stiffness * spec.spacing * w;
+  EXPECT_LE(static_cast<double>(a.cwiseAbs().maxCoeff()), bound) << "a skewed grid is pre-stressed";
+}
+
+TYPED_TEST(ModelTest, ParallelGridAxesAreRejected) {
+  using S = TypeParam;
+  ClothGridSpec spec = gridSpec(4, 4);
+  spec.rowAxis = {1, 0, 0};
+  spec.columnAxis = {-2, 0, 0};
+  ModelBuilder<S> b;
+  EXPECT_THROW(addClothGrid(b, spec), std::invalid_argument);
+}
+
+TEST(ModelNames, SpringClassNames) {
+  EXPECT_STREQ(springClassName(SpringClass::Structural), "structural");
+  EXPECT_STREQ(springClassName(SpringClass::Shear), "shear");
+  EXPECT_STREQ(springClassName(SpringClass::Bend), "bend");
+}
+
+}  // namespace
+}  // namespace weft::test

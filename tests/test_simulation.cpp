@@ -1,0 +1,460 @@
+// tests/test_simulation.cpp — Simulation: bitwise determinism across thread counts and
+// arenas, the stability check and failure handling, option validation, agreement with
+// the textbook RK4 baseline.
+#include <gtest/gtest.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "support/test_support.hpp"
+#include "textbook.hpp"
+
+namespace weft::test {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Bitwise determinism
+// ---------------------------------------------------------------------------------------
+
+template <class C>
+class Determinism : public ::testing::Test {};
+TYPED_TEST_SUITE(Determinism, AllConfigs, ConfigNames);
+
+/// Side of the flag for the determinism runs: 40 x 40 = 1600 particles and ~9 000 springs
+/// give every pass several blocks (kParticleGrain 1024, kSpringGrain 4096) and the grid
+/// stencil several chunks, so two threads really split the work.
+constexpr Index kFlagSize = 40;
+constexpr int kSteps = 200;
+
+struct RunResult {
+  std::uint64_t hash = 0;
+  StepStatus status;
+  Index steps = 0;
+  int threads = 0;
+};
+
+template <class S>
+RunResult runFlag(const ModelAndState<S>& scene, IntegratorKind kind, ForceStrategy strategy, int threads,
+                  tbb::task_arena* arena) {
+  SimulationOptions options = flagOptions(kind, strategy, threads, defaultTimeStep(BuiltinScene::Flag, kFlagSize));
+  if (kind == IntegratorKind::ExplicitEuler) options.dt /= 4;  // keep explicit Euler stable for the whole run
+  options.arena = arena;
+  Simulation<S> sim(ModelAndState<S>{scene.model, scene.state}, options);
+  RunResult r;
+  r.status = sim.run(kSteps);
+  r.steps = sim.stepCount();
+  r.hash = stateHash(sim.state());
+  r.threads = sim.threadCount();
+  EXPECT_EQ(sim.forceStrategy(), strategy);
+  return r;
+}
+
+TYPED_TEST(Determinism, StateHashIsTheSameForOneAndTwoThreadsAndAnExternalArena) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  ModelAndState<S> flag = makeFlag<S>(kFlagSize);
+  perturbFree(flag.model, flag.state, 0.0, 0.05, 41);  // break the left-right symmetry
+  tbb::task_arena arena(2);
+  for (const ForceStrategy strategy : kGridStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    const RunResult one = runFlag(flag, kind, strategy, 1, nullptr);
+    const RunResult two = runFlag(flag, kind, strategy, 2, nullptr);
+    const RunResult external = runFlag(flag, kind, strategy, 0, &arena);
+    ASSERT_TRUE(one.status.ok()) << one.status.message();
+    EXPECT_EQ(one.steps, kSteps);
+    EXPECT_EQ(one.threads, 1);
+    EXPECT_EQ(two.threads, 2);
+    EXPECT_EQ(external.threads, 2);
+    EXPECT_TRUE(two.status.ok()) << two.status.message();
+    EXPECT_TRUE(external.status.ok()) << external.status.message();
+    EXPECT_EQ(one.hash, two.hash) << "threads 1 vs 2";
+    EXPECT_EQ(one.hash, external.hash) << "threads 1 vs an external arena of 2";
+  }
+}
+
+TYPED_TEST(Determinism, LargeFlagWithEveryPassSplitIntoBlocks) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  // Above 4096 particles the stability check (kGrain) has more than one block too, and
+  // every force strategy several blocks and chunks; fewer steps keep it quick.
+  constexpr Index size = 72;
+  ASSERT_GT(size * size, StabilityCheck<S>::kGrain);
+  ModelAndState<S> flag = makeFlag<S>(size);
+  perturbFree(flag.model, flag.state, 0.0, 0.05, 42);
+  for (const ForceStrategy strategy : {ForceStrategy::Gather, ForceStrategy::GridStencil}) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    SimulationOptions options = flagOptions(kind, strategy, 1, defaultTimeStep(BuiltinScene::Flag, size));
+    if (kind == IntegratorKind::ExplicitEuler) options.dt /= 4;
+    std::uint64_t hash[2] = {0, 0};
+    for (const int threads : {1, 2}) {
+      options.threads = threads;
+      Simulation<S> sim(ModelAndState<S>{flag.model, flag.state}, options);
+      const StepStatus status = sim.run(30);
+      ASSERT_TRUE(status.ok()) << status.message();
+      hash[threads - 1] = stateHash(sim.state());
+    }
+    EXPECT_EQ(hash[0], hash[1]);
+  }
+}
+
+TYPED_TEST(Determinism, RepeatedRunsAreIdentical) {
+  using S = typename TypeParam::Scalar;
+  constexpr IntegratorKind kind = TypeParam::kIntegrator;
+  // The default strategy, two threads, twice: no dependence on scheduling.
+  const ModelAndState<S> flag = makeFlag<S>(kFlagSize);
+  SimulationOptions options = flagOptions(kind, ForceStrategy::Auto, 2, defaultTimeStep(BuiltinScene::Flag, kFlagSize));
+  if (kind == IntegratorKind::ExplicitEuler) options.dt /= 4;
+  Simulation<S> a(ModelAndState<S>{flag.model, flag.state}, options);
+  Simulation<S> b(ModelAndState<S>{flag.model, flag.state}, options);
+  for (int k = 0; k < 5; ++k) {
+    ASSERT_TRUE(a.run(10).ok());
+    ASSERT_TRUE(b.run(10).ok());
+    ASSERT_EQ(stateHash(a.state()), stateHash(b.state())) << "after " << a.stepCount() << " steps";
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Stability check and failure handling
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+class SimulationTest : public ::testing::Test {};
+TYPED_TEST_SUITE(SimulationTest, ScalarTypes);
+
+/// Steps until the first failure (at most maxSteps); `before` is the state before the
+/// failing step.
+template <class S>
+StepStatus stepUntilFailure(Simulation<S>& sim, int maxSteps, State<S>& before) {
+  for (int k = 0; k < maxSteps; ++k) {
+    before = sim.state();
+    const StepStatus status = sim.step();
+    if (!status.ok()) return status;
+  }
+  return StepStatus{};
+}
+
+template <class S>
+void expectFailureHandled(Simulation<S>& sim, const StepStatus& failure, const State<S>& before) {
+  const Model<S>& model = sim.model();
+  ASSERT_FALSE(failure.ok()) << "the unstable run did not fail";
+  EXPECT_TRUE(failure.code == StepCode::NonFinite || failure.code == StepCode::Overstretched)
+      << stepCodeName(failure.code);
+  EXPECT_GE(failure.particle, 0);
+  EXPECT_LT(failure.particle, model.particleCount());
+  if (failure.code == StepCode::Overstretched) {
+    ASSERT_GE(failure.spring, 0);
+    ASSERT_LT(failure.spring, model.springCount());
+    const Index a = model.springs().a[failure.spring], b = model.springs().b[failure.spring];
+    EXPECT_EQ(failure.particle, std::min(a, b));
+    EXPECT_GT(failure.value, sim.options().stability.maxStretch);
+  } else {
+    EXPECT_FALSE(std::isfinite(failure.value)) << failure.value;
+  }
+  EXPECT_EQ(failure.time, before.time);
+  EXPECT_FALSE(failure.message().empty());
+  EXPECT_EQ(sim.status().code, failure.code);
+
+  // The state is the last good one: finite, and exactly what it was before the step.
+  EXPECT_TRUE(allFinite(sim.state()));
+  EXPECT_EQ(stateHash(sim.state()), stateHash(before));
+  EXPECT_EQ(sim.state().time, before.time);
+
+  // Further steps return the same failure without advancing (or evaluating anything).
+  const Index steps = sim.stepCount();
+  const std::int64_t evaluations = sim.forceEvaluations();
+  for (int k = 0; k < 3; ++k) {
+    const StepStatus again = sim.step();
+    EXPECT_EQ(again.code, failure.code);
+    EXPECT_EQ(again.particle, failure.particle);
+    EXPECT_EQ(again.spring, failure.spring);
+    EXPECT_EQ(again.time, failure.time);
+  }
+  EXPECT_EQ(sim.run(10).code, failure.code);
+  EXPECT_EQ(sim.stepCount(), steps);
+  EXPECT_EQ(sim.forceEvaluations(), evaluations);
+  EXPECT_EQ(stateHash(sim.state()), stateHash(before));
+
+  // setTimeStep clears the failure and stepping resumes.
+  sim.setTimeStep(sim.timeStep() / 100);
+  EXPECT_TRUE(sim.status().ok());
+  (void)sim.step();
+  EXPECT_GT(sim.forceEvaluations(), evaluations);
+}
+
+TYPED_TEST(SimulationTest, ExplicitEulerPastItsLimitOverstretchesAndStops) {
+  using S = TypeParam;
+  ModelAndState<S> flag = makeUndampedFlag<S>(16);
+  const State<S> initial = flag.state;
+  SimulationOptions options = flagOptions(IntegratorKind::ExplicitEuler, ForceStrategy::Auto, 2, 2e-3);
+  Simulation<S> sim(std::move(flag), options);
+  State<S> before;
+  const StepStatus failure = stepUntilFailure(sim, 2000, before);
+  // Springs stretch past 10x their rest length long before anything overflows.
+  EXPECT_EQ(failure.code, StepCode::Overstretched) << failure.message();
+  expectFailureHandled(sim, failure, before);
+  // A good state brings it back to life.
+  sim.setState(initial);
+  sim.setTimeStep(1e-4);
+  EXPECT_TRUE(sim.status().ok());
+  EXPECT_TRUE(sim.step().ok());
+}
+
+TYPED_TEST(SimulationTest, WithoutTheStretchCheckTheFailureIsNonFinite) {
+  using S = TypeParam;
+  // The oscillator, undamped, far past explicit Euler's limit: the amplitude grows by
+  // ~omega dt per step until it overflows; with the stretch check off, the finiteness
+  // check must catch it. The overflowing spring force is NaN on both ends and the pinned
+  // particle 0 gets 0 * NaN, but the report names where the instability is: the free
+  // particle 1.
+  Oscillator osc;
+  osc.damping = 0;
+  SimulationOptions options = osc.options(IntegratorKind::ExplicitEuler, 20.0 / osc.omega);
+  options.stability.maxStretch = 0;
+  Simulation<S> sim(osc.build<S>(), options);
+  State<S> before;
+  const StepStatus failure = stepUntilFailure(sim, 2000, before);
+  ASSERT_EQ(failure.code, StepCode::NonFinite) << failure.message();
+  EXPECT_EQ(failure.particle, 1) << failure.message();
+  expectFailureHandled(sim, failure, before);
+}
+
+TYPED_TEST(SimulationTest, EveryIntegratorFailsCleanlyAtAHugeStep) {
+  using S = TypeParam;
+  for (const IntegratorKind kind : kAllIntegrators) {
+    SCOPED_TRACE(integratorName(kind));
+    ModelAndState<S> flag = makeFlag<S>(12);
+    perturbFree(flag.model, flag.state, 0.0, 0.5, 51);
+    Simulation<S> sim(std::move(flag), flagOptions(kind, ForceStrategy::Auto, 1, 1.0));
+    State<S> before;
+    const StepStatus failure = stepUntilFailure(sim, 50, before);
+    expectFailureHandled(sim, failure, before);
+  }
+}
+
+TYPED_TEST(SimulationTest, FailureReportIsTheSameForAnyThreadCount) {
+  using S = TypeParam;
+  // Several blocks in both checks (5184 particles, ~30 000 springs): the report names the
+  // lowest failing index whichever block found it first.
+  const ModelAndState<S> flag = makeUndampedFlag<S>(72);
+  StepStatus failure[2];
+  Index steps[2] = {0, 0};
+  std::uint64_t hash[2] = {0, 0};
+  for (const int threads : {1, 2}) {
+    Simulation<S> sim(ModelAndState<S>{flag.model, flag.state},
+                      flagOptions(IntegratorKind::ExplicitEuler, ForceStrategy::Auto, threads, 5e-4));
+    State<S> before;
+    failure[threads - 1] = stepUntilFailure(sim, 500, before);
+    steps[threads - 1] = sim.stepCount();
+    hash[threads - 1] = stateHash(sim.state());
+  }
+  ASSERT_FALSE(failure[0].ok());
+  EXPECT_EQ(failure[0].code, failure[1].code);
+  EXPECT_EQ(failure[0].particle, failure[1].particle);
+  EXPECT_EQ(failure[0].spring, failure[1].spring);
+  EXPECT_EQ(failure[0].value, failure[1].value);
+  EXPECT_EQ(failure[0].time, failure[1].time);
+  EXPECT_EQ(steps[0], steps[1]);
+  EXPECT_EQ(hash[0], hash[1]);
+}
+
+TYPED_TEST(SimulationTest, DisabledStabilityCheckNeverFails) {
+  using S = TypeParam;
+  Oscillator osc;
+  osc.damping = 0;
+  SimulationOptions options = osc.options(IntegratorKind::ExplicitEuler, 20.0 / osc.omega);
+  options.stability.enabled = false;
+  Simulation<S> sim(osc.build<S>(), options);
+  EXPECT_TRUE(sim.run(500).ok());
+  EXPECT_EQ(sim.stepCount(), 500);
+  EXPECT_FALSE(allFinite(sim.state()));  // which is what the check is there to prevent
+}
+
+TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
+  using S = TypeParam;
+  Simulation<S> sim(makeFlag<S>(8), flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4));
+  ASSERT_TRUE(sim.run(3).ok());
+  const std::uint64_t hash = stateHash(sim.state());
+
+  State<S> bad = sim.state();
+  bad.x(5, 1) = std::numeric_limits<S>::quiet_NaN();
+  EXPECT_THROW(sim.setState(bad), std::invalid_argument);
+  bad = sim.state();
+  bad.v(7, 2) = std::numeric_limits<S>::infinity();
+  EXPECT_THROW(sim.setState(bad), std::invalid_argument);
+  State<S> small;
+  small.x = Vec3Array<S>::Zero(3, 3);
+  small.v = Vec3Array<S>::Zero(3, 3);
+  try {
+    sim.setState(small);
+    FAIL() << "a state of the wrong size was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("3"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(stateHash(sim.state()), hash) << "a rejected state must leave the simulation alone";
+  EXPECT_TRUE(sim.step().ok());
+}
+
+TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {
+  using S = TypeParam;
+  for (const IntegratorKind kind : kAllIntegrators) {
+    SCOPED_TRACE(integratorName(kind));
+    Simulation<S> sim(makeFlag<S>(8), flagOptions(kind, ForceStrategy::Auto, 1, 1e-4));
+    EXPECT_EQ(sim.integrator(), kind);
+    EXPECT_EQ(sim.forceStrategy(), ForceStrategy::GridStencil);  // Auto on a grid
+    ASSERT_TRUE(sim.run(25).ok());
+    EXPECT_EQ(sim.stepCount(), 25);
+    EXPECT_NEAR(sim.state().time, 25 * 1e-4, 1e-15);
+    EXPECT_EQ(sim.lastWork().forceEvaluations, kind == IntegratorKind::Rk4        ? 4
+                                               : kind == IntegratorKind::Midpoint ? 2
+                                                                                  : 1);
+    EXPECT_EQ(sim.forceEvaluations(), 25 * sim.lastWork().forceEvaluations);
+    // Gravity pulls the free particles down; the pinned corners stay.
+    EXPECT_LT(sim.state().x.col(1).minCoeff(), S(0));
+    EXPECT_EQ(sim.state().x(0, 1), S(0));
+  }
+}
+
+TYPED_TEST(SimulationTest, SharesItsModel) {
+  using S = TypeParam;
+  ModelAndState<S> flag = makeFlag<S>(8);
+  auto model = std::make_shared<const Model<S>>(std::move(flag.model));
+  SimulationOptions options = flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4);
+  Simulation<S> a(model, flag.state, options);
+  Simulation<S> b(model, flag.state, options);
+  EXPECT_EQ(&a.model(), &b.model());
+  ASSERT_TRUE(a.run(5).ok());
+  ASSERT_TRUE(b.run(5).ok());
+  EXPECT_EQ(stateHash(a.state()), stateHash(b.state()));
+  EXPECT_THROW(Simulation<S>(std::shared_ptr<const Model<S>>(), flag.state, options), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad options
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+void expectBadOptions(const SimulationOptions& options, const std::string& field, const std::string& value) {
+  try {
+    Simulation<S> sim(makeFlag<S>(4), options);
+    ADD_FAILURE() << "accepted bad " << field << " = " << value;
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(field), std::string::npos) << what;
+    EXPECT_NE(what.find(value), std::string::npos) << what;
+  }
+}
+
+TYPED_TEST(SimulationTest, BadOptionsThrowNamingTheField) {
+  using S = TypeParam;
+  SimulationOptions o;
+  o.threads = 1;
+  o.dt = 0;
+  expectBadOptions<S>(o, "dt", "0");
+  o.dt = -1;
+  expectBadOptions<S>(o, "dt", "-1");
+  o.dt = std::numeric_limits<double>::quiet_NaN();
+  expectBadOptions<S>(o, "dt", "nan");
+  o.dt = std::numeric_limits<double>::infinity();
+  expectBadOptions<S>(o, "dt", "inf");
+  o.dt = 1e-3;
+  o.threads = -1;
+  expectBadOptions<S>(o, "threads", "-1");
+  o.threads = 1;
+  o.gravity = {0, std::numeric_limits<double>::quiet_NaN(), 0};
+  expectBadOptions<S>(o, "gravity", "");
+  o.gravity = {0, -9.81, 0};
+  o.stability.maxStretch = std::numeric_limits<double>::quiet_NaN();
+  expectBadOptions<S>(o, "maxStretch", "");
+}
+
+TYPED_TEST(SimulationTest, BadTimeStepIsRejectedAndKeepsTheOldOne) {
+  using S = TypeParam;
+  Simulation<S> sim(makeFlag<S>(4), flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4));
+  for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    try {
+      sim.setTimeStep(dt);
+      ADD_FAILURE() << "accepted dt " << dt;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("dt"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(sim.timeStep(), 1e-4);
+}
+
+TYPED_TEST(SimulationTest, GridStencilOnARopeIsRejected) {
+  using S = TypeParam;
+  EXPECT_THROW(Simulation<S>(makeRope<S>(8), flagOptions(IntegratorKind::Rk4, ForceStrategy::GridStencil, 1, 1e-4)),
+               std::invalid_argument);
+}
+
+TYPED_TEST(SimulationTest, ExternalArenaIsUsed) {
+  using S = TypeParam;
+  tbb::task_arena arena(2);
+  SimulationOptions options = flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4);
+  options.arena = &arena;  // `threads` is then ignored
+  Simulation<S> sim(makeFlag<S>(8), options);
+  EXPECT_EQ(sim.threadCount(), 2);
+  EXPECT_TRUE(sim.run(5).ok());
+}
+
+// ---------------------------------------------------------------------------------------
+// Agreement with the textbook RK4 baseline
+// ---------------------------------------------------------------------------------------
+
+struct TextbookCase {
+  Index size;
+  ForceStrategy strategy;
+  double tolerance;  // on positions (m) and velocities (m/s)
+};
+
+class TextbookAgreement : public ::testing::TestWithParam<TextbookCase> {};
+
+TEST_P(TextbookAgreement, Rk4MatchesTheTextbookClothInDouble) {
+  const TextbookCase c = GetParam();
+  const Vec3d gravity{0, -9.81, 0};
+  const double dt = defaultTimeStep(BuiltinScene::Flag, c.size);
+  const int steps = 100;
+  ModelAndState<double> flag = makeFlag<double>(c.size);
+  textbook::Cloth cloth(flag.model, flag.state, gravity);
+  SimulationOptions options = flagOptions(IntegratorKind::Rk4, c.strategy, 2, dt);
+  options.gravity = gravity;
+  Simulation<double> sim(std::move(flag), options);
+  ASSERT_TRUE(sim.run(steps).ok());
+  for (int k = 0; k < steps; ++k) cloth.stepRk4(dt);
+
+  double dx = 0, dv = 0, moved = 0;
+  const State<double>& s = sim.state();
+  for (Index i = 0; i < s.particleCount(); ++i) {
+    const textbook::Particle& p = cloth.particles()[i];
+    dx = std::max({dx, std::abs(s.x(i, 0) - p.x.x), std::abs(s.x(i, 1) - p.x.y), std::abs(s.x(i, 2) - p.x.z)});
+    dv = std::max({dv, std::abs(s.v(i, 0) - p.v.x), std::abs(s.v(i, 1) - p.v.y), std::abs(s.v(i, 2) - p.v.z)});
+    moved = std::max(moved, std::abs(s.x(i, 1)));
+  }
+  EXPECT_LE(dx, c.tolerance) << "max |x_weft - x_textbook|";
+  EXPECT_LE(dv, c.tolerance) << "max |v_weft - v_textbook|";
+  EXPECT_GT(moved, 1e-4) << "the flag did not fall: the comparison would be vacuous";
+}
+
+INSTANTIATE_TEST_SUITE_P(Flag, TextbookAgreement,
+                         // Both take |dx| as the correctly rounded sqrt, so they differ only by
+                         // the rounding of the remaining products (weft multiplies by 1/|dx|,
+                         // the textbook divides). 128 is the benchmark's size.
+                         ::testing::Values(TextbookCase{16, ForceStrategy::Gather, 1e-12},
+                                           TextbookCase{16, ForceStrategy::Coloured, 1e-12},
+                                           TextbookCase{16, ForceStrategy::GridStencil, 1e-12},
+                                           TextbookCase{64, ForceStrategy::Auto, 1e-12},
+                                           TextbookCase{128, ForceStrategy::Auto, 1e-12}),
+                         [](const auto& info) {
+                           std::string name = std::string("size") + std::to_string(info.param.size) + "_" +
+                                              forceStrategyName(info.param.strategy);
+                           for (char& ch : name)
+                             if (ch == '-') ch = '_';
+                           return name;
+                         });
+
+}  // namespace
+}  // namespace weft::test

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Builds weft and runs its test suite. Self-contained on a fresh Debian 12 machine.
+#
+#   bash tools/run_tests.sh            Release build in build/, the whole suite (ctest)
+#   bash tools/run_tests.sh asan       AddressSanitizer + UndefinedBehaviorSanitizer build in
+#                                      build-asan/, the whole suite
+#   bash tools/run_tests.sh tsan       ThreadSanitizer build in build-tsan/, the tests labelled
+#                                      `threaded` (everything that runs on 2 threads), against a
+#                                      oneTBB built with TSan from Debian's source package
+#                                      (tools/build_tsan_tbb.sh, cached in build-tsan-tbb/)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mode="${1:-release}"
+jobs="${WEFT_JOBS:-2}"
+
+bash tools/setup.sh
+
+case "$mode" in
+  release)
+    dir=build
+    flags=(-DCMAKE_BUILD_TYPE=Release)
+    ctest_args=()
+    ;;
+  asan)
+    dir=build-asan
+    flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_SANITIZE=address,undefined -DWEFT_BUILD_BENCH=OFF)
+    ctest_args=()
+    export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
+    export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+    ;;
+  tsan)
+    dir=build-tsan
+    bash tools/build_tsan_tbb.sh build-tsan-tbb
+    flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_SANITIZE=thread -DWEFT_BUILD_BENCH=OFF
+           -DTBB_DIR="$PWD/build-tsan-tbb/lib/cmake/TBB")
+    ctest_args=(-L threaded)
+    export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1"
+    ;;
+  *)
+    echo "run_tests.sh: mode must be release, asan or tsan; got '$mode'" >&2
+    exit 2
+    ;;
+esac
+
+cmake -S . -B "$dir" "${flags[@]}" >/dev/null
+cmake --build "$dir" -j"$jobs"
+ctest --test-dir "$dir" --output-on-failure -j"$jobs" "${ctest_args[@]}"
