@@ -5,8 +5,9 @@
 #
 #   bash bench/run_benchmarks.sh [name] [extra weft_bench flags...]
 #
-# Compare two runs with Google Benchmark's compare.py (tools/compare.py in its sources):
-#   compare.py benchmarks bench/results/A.json bench/results/B.json
+# Compare two runs (median time ratio per benchmark; Google Benchmark's compare.py also
+# reads these files if you have its sources):
+#   /usr/bin/python3 bench/summarize.py --compare bench/results/A.json bench/results/B.json
 set -euo pipefail
 cd "$(dirname "$0")/.."
 name="${1:-$(date -u +%Y-%m-%d)-$(hostname -s)}"

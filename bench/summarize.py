@@ -4,6 +4,11 @@ quoted in docs/benchmarks.md. Uses medians of the repetitions; every ratio is be
 two benchmarks of the same run. Standard library only.
 
     summarize.py RESULTS.json [MEMORY.json]
+    summarize.py --compare BASE.json NEW.json     per-benchmark time ratio NEW/BASE
+
+(--compare is the part of Google Benchmark's compare.py workflow that Debian does not
+package: the ratio of median real times, benchmark by benchmark. On a noisy machine,
+compare runs made back to back and treat differences under ~10% as noise.)
 """
 import json
 import re
@@ -27,7 +32,23 @@ def us(b):
     return b["real_time"] * scale
 
 
+def compare(base_path, new_path):
+    _, base = load(base_path)
+    _, new = load(new_path)
+    print(f"| benchmark | {base_path} (us) | {new_path} (us) | new/base |")
+    print("|---|---|---|---|")
+    for name in sorted(set(base) & set(new)):
+        b, n = us(base[name]), us(new[name])
+        print(f"| {name} | {b:.1f} | {n:.1f} | {n / b:.3f} |")
+    only = sorted(set(base) ^ set(new))
+    if only:
+        print(f"\nin one file only: {', '.join(only)}")
+
+
 def main():
+    if sys.argv[1] == "--compare":
+        compare(sys.argv[2], sys.argv[3])
+        return
     context, m = load(sys.argv[1])
     print(f"machine: {context.get('host_name', '?')}, {context.get('num_cpus', '?')} cpus, "
           f"{context.get('mhz_per_cpu', '?')} MHz; build: {context.get('weft_build_type', '?')}, "
@@ -85,8 +106,9 @@ def main():
         with open(sys.argv[2]) as f:
             run = json.load(f)
         mb = run["peak_rss_mb"]
-        print(f"\nPeak resident memory, `weft run flag --size 256 --precision float`: {mb:.1f} MB "
-              f"(target <= 32 MB: {'met' if mb <= 32 else 'missed'})")
+        decimal = mb * 1.048576
+        print(f"\nPeak resident memory, `weft run flag --size 256 --precision float`: {mb:.1f} MiB = "
+              f"{decimal:.1f} MB (target <= 32 MB: {'met' if decimal <= 32.0 else 'missed'})")
 
 
 if __name__ == "__main__":
