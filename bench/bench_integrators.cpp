@@ -61,6 +61,8 @@ WEFT_INTEGRATOR(BM_Integrator_Midpoint_float, float, IntegratorKind::Midpoint);
 WEFT_INTEGRATOR(BM_Integrator_Midpoint_double, double, IntegratorKind::Midpoint);
 WEFT_INTEGRATOR(BM_Integrator_Rk4_float, float, IntegratorKind::Rk4);
 WEFT_INTEGRATOR(BM_Integrator_Rk4_double, double, IntegratorKind::Rk4);
+WEFT_INTEGRATOR(BM_Integrator_Verlet_float, float, IntegratorKind::VelocityVerlet);
+WEFT_INTEGRATOR(BM_Integrator_Verlet_double, double, IntegratorKind::VelocityVerlet);
 
 void BM_Textbook_Rk4_double(benchmark::State& st) {
   const auto size = static_cast<weft::Index>(st.range(0));

@@ -70,7 +70,7 @@ def main():
     print("\n## One step of each integrator on the flag (median us)\n")
     print("| integrator | precision | size | 1 thread | 2 threads | 2t/1t | allocs/step |")
     print("|---|---|---|---|---|---|---|")
-    for integ in ["Euler", "Symplectic", "Midpoint", "Rk4"]:
+    for integ in ["Euler", "Symplectic", "Midpoint", "Rk4", "Verlet"]:
         for prec in ["float", "double"]:
             for size in [128, 256]:
                 k1 = f"BM_Integrator_{integ}_{prec}/size:{size}/threads:1/real_time"

@@ -37,8 +37,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
-  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4")
-      ->check(CLI::IsMember({"euler", "symplectic", "midpoint", "rk4"}));
+  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4 | verlet")
+      ->check(CLI::IsMember({"euler", "symplectic", "midpoint", "rk4", "verlet"}));
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")

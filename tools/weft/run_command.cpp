@@ -76,6 +76,7 @@ int run(const RunOptions& o) {
   const auto byClass = model.springCountByClass();
   const Energy<S> e = energy(model, state, options.gravity);
   const double lowest = static_cast<double>(state.x.col(1).minCoeff());
+  const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
 
   if (o.json) {
     nlohmann::ordered_json j;
@@ -95,6 +96,8 @@ int run(const RunOptions& o) {
     j["steps_per_second"] = stepsPerSecond;
     j["spring_evals_per_second"] = springEvalsPerSecond;
     j["force_evaluations"] = sim.forceEvaluations();
+    j["work_per_step"] = {{"force_evaluations", sim.lastWork().forceEvaluations}};
+    j["stable_dt_estimate"] = stableDt;
     j["status"] = weft::stepCodeName(status.code);
     if (!status.ok()) j["status_message"] = status.message();
     j["state_hash"] = hash;
@@ -111,6 +114,8 @@ int run(const RunOptions& o) {
         << byClass[2] << ")\n"
         << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt " << options.dt
         << " s, " << sim.threadCount() << " thread(s), forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
+        << "  stable dt    " << stableDt
+        << " s estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n"
         << "  steps        " << done << " of " << o.steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"

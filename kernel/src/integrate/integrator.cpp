@@ -1,5 +1,6 @@
 #include "weft/integrate/integrator.hpp"
 
+#include <cmath>
 #include <stdexcept>
 
 #include "row_blocks.hpp"
@@ -16,6 +17,8 @@ const char* integratorName(IntegratorKind kind) {
       return "midpoint";
     case IntegratorKind::Rk4:
       return "rk4";
+    case IntegratorKind::VelocityVerlet:
+      return "verlet";
   }
   return "unknown";
 }
@@ -23,7 +26,7 @@ const char* integratorName(IntegratorKind kind) {
 IntegratorKind parseIntegrator(const std::string& name) {
   for (IntegratorKind k : kAllIntegrators)
     if (name == integratorName(k)) return k;
-  throw std::invalid_argument("integrator must be one of euler, symplectic, midpoint, rk4; got '" + name + "'");
+  throw std::invalid_argument("integrator must be one of euler, symplectic, midpoint, rk4, verlet; got '" + name + "'");
 }
 
 int integratorOrder(IntegratorKind kind) {
@@ -36,6 +39,36 @@ int integratorOrder(IntegratorKind kind) {
       return 2;
     case IntegratorKind::Rk4:
       return 4;
+    case IntegratorKind::VelocityVerlet:
+      return 2;
+  }
+  return 0;
+}
+
+int integratorForceEvaluations(IntegratorKind kind) {
+  switch (kind) {
+    case IntegratorKind::ExplicitEuler:
+    case IntegratorKind::SymplecticEuler:
+    case IntegratorKind::VelocityVerlet:
+      return 1;
+    case IntegratorKind::Midpoint:
+      return 2;
+    case IntegratorKind::Rk4:
+      return 4;
+  }
+  return 0;
+}
+
+double integratorStabilityLimit(IntegratorKind kind) {
+  switch (kind) {
+    case IntegratorKind::SymplecticEuler:
+    case IntegratorKind::VelocityVerlet:
+      return 2;
+    case IntegratorKind::Rk4:
+      return 2 * std::sqrt(2.0);
+    case IntegratorKind::ExplicitEuler:
+    case IntegratorKind::Midpoint:
+      return 0;
   }
   return 0;
 }
@@ -52,6 +85,8 @@ std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particl
       return detail::makeMidpoint<S>(particleCount);
     case IntegratorKind::Rk4:
       return detail::makeRk4<S>(particleCount);
+    case IntegratorKind::VelocityVerlet:
+      return detail::makeVelocityVerlet<S>(particleCount);
   }
   throw std::invalid_argument("makeIntegrator: unknown integrator kind");
 }

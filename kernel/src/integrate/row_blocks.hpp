@@ -34,5 +34,7 @@ template <class S>
 std::unique_ptr<Integrator<S>> makeMidpoint(Index n);
 template <class S>
 std::unique_ptr<Integrator<S>> makeRk4(Index n);
+template <class S>
+std::unique_ptr<Integrator<S>> makeVelocityVerlet(Index n);
 
 }  // namespace weft::detail

@@ -191,4 +191,34 @@ StepStatus StabilityCheck<S>::locate(const Vec3Array<S>& x, const Vec3Array<S>& 
 template class StabilityCheck<float>;
 template class StabilityCheck<double>;
 
+template <class S>
+double maxAngularFrequency(const Model<S>& model) {
+  const Index n = model.particleCount();
+  const Springs<S>& sp = model.springs();
+  std::vector<double> row(static_cast<size_t>(n), 0.0);
+  for (Index s = 0; s < sp.count(); ++s) {
+    const double k = static_cast<double>(sp.stiffness[s]);
+    const double wa = static_cast<double>(model.inverseMass()[sp.a[s]]);
+    const double wb = static_cast<double>(model.inverseMass()[sp.b[s]]);
+    const double cross = std::sqrt(wa * wb);
+    row[sp.a[s]] += k * (wa + cross);
+    row[sp.b[s]] += k * (wb + cross);
+  }
+  double largest = 0;
+  for (double r : row) largest = std::max(largest, r);
+  return std::sqrt(largest);
+}
+
+template <class S>
+double estimateStableTimeStep(const Model<S>& model, IntegratorKind kind) {
+  const double omega = maxAngularFrequency(model);
+  if (omega == 0) return std::numeric_limits<double>::infinity();
+  return integratorStabilityLimit(kind) / omega;
+}
+
+template double maxAngularFrequency(const Model<float>&);
+template double maxAngularFrequency(const Model<double>&);
+template double estimateStableTimeStep(const Model<float>&, IntegratorKind);
+template double estimateStableTimeStep(const Model<double>&, IntegratorKind);
+
 }  // namespace weft

@@ -66,6 +66,7 @@ void Simulation<S>::setState(const State<S>& state) {
     throw std::invalid_argument("Simulation::setState: state has non-finite positions or velocities");
   state_ = state;
   status_ = StepStatus{};
+  integrator_->reset();
 }
 
 template <class S>
@@ -87,6 +88,7 @@ StepStatus Simulation<S>::step() {
   forceEvaluations_ += lastWork_.forceEvaluations;
   if (!status_.ok()) {
     status_.time = state_.time;
+    integrator_->reset();  // anything it carried belongs to the rejected candidate
     return status_;
   }
   state_.x.swap(nextX_);  // O(1): exchanges storage, no copy, no allocation

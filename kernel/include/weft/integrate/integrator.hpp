@@ -15,6 +15,9 @@
 //   Midpoint (RK2)   half Euler step to (xm, vm), then the full step with the
 //                    midpoint derivative: x1 = x0 + h vm, v1 = v0 + h a(xm, vm)  order 2
 //   Rk4              classic Runge-Kutta, weights 1/6 (1, 2, 2, 1)              order 4
+//   VelocityVerlet   x1 = x0 + h v0 + h^2/2 a0,  v1 = v0 + h/2 (a0 + a1),
+//                    a1 = a(x1, v0 + h a0); a1 is kept as the next step's a0, so one
+//                    force evaluation per step (two on the first)                order 2
 //
 // See docs/integrators.md for stability limits and when to use which.
 #pragma once
@@ -26,17 +29,25 @@
 
 namespace weft {
 
-enum class IntegratorKind { ExplicitEuler, SymplecticEuler, Midpoint, Rk4 };
+enum class IntegratorKind { ExplicitEuler, SymplecticEuler, Midpoint, Rk4, VelocityVerlet };
 
-/// Short name used on the command line: euler, symplectic, midpoint, rk4.
+/// Short name used on the command line: euler, symplectic, midpoint, rk4, verlet.
 const char* integratorName(IntegratorKind kind);
 /// Parses a short name; throws std::invalid_argument naming the value otherwise.
 IntegratorKind parseIntegrator(const std::string& name);
 /// Global order of accuracy.
 int integratorOrder(IntegratorKind kind);
+/// Force evaluations of a step in steady state (Verlet's first step after a reset costs
+/// one more: see Integrator::reset).
+int integratorForceEvaluations(IntegratorKind kind);
+/// Largest omega h at which the method is stable on an undamped spring (the imaginary
+/// axis of its stability region): 2 for symplectic Euler and Verlet, 2 sqrt(2) for RK4,
+/// 0 for explicit Euler and midpoint, which amplify an undamped oscillation at any step.
+double integratorStabilityLimit(IntegratorKind kind);
 /// Every integrator, in the order above (for parameterised tests and sweeps).
 inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEuler, IntegratorKind::SymplecticEuler,
-                                                     IntegratorKind::Midpoint, IntegratorKind::Rk4};
+                                                     IntegratorKind::Midpoint, IntegratorKind::Rk4,
+                                                     IntegratorKind::VelocityVerlet};
 
 /// The work one step did, reported by every integrator the same way.
 struct StepWork {
@@ -48,6 +59,11 @@ class Integrator {
  public:
   virtual ~Integrator() = default;
   virtual IntegratorKind kind() const = 0;
+
+  /// Forgets anything carried from step to step (Verlet's acceleration). The Simulation
+  /// calls it whenever the state changes other than by an accepted step of this
+  /// integrator: a new state, or a rejected step.
+  virtual void reset() {}
 
   /// (x1, v1) = the state one step h after (x0, v0). All buffers (n x 3), distinct, and of
   /// the particle count given at construction.

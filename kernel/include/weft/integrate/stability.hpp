@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "weft/core/parallel.hpp"
+#include "weft/integrate/integrator.hpp"
 #include "weft/model/model.hpp"
 
 namespace weft {
@@ -67,5 +68,26 @@ class StabilityCheck {
 
 extern template class StabilityCheck<float>;
 extern template class StabilityCheck<double>;
+
+/// Upper bound on the highest angular frequency (rad/s) of the model's undamped springs
+/// about their rest state: block Gershgorin on M^-1/2 K M^-1/2, whose block for a spring
+/// (k n n^T) has norm k, gives omega_max^2 <= max_i sum_s k_s (w_i + sqrt(w_i w_j)) over
+/// the springs s = (i, j) of particle i (w = inverse mass). Exact for one mass on a spring
+/// to a pinned point and for the interior of a uniform chain; the tension of stretched
+/// springs and damping are not included. 0 for a model without springs.
+template <class S>
+double maxAngularFrequency(const Model<S>& model);
+
+/// The largest time step at which `kind` is stable on the model's stiffest mode by the
+/// bound above: integratorStabilityLimit(kind) / maxAngularFrequency(model). 0 for the
+/// methods with no stable step on an undamped spring (explicit Euler, midpoint); +inf for
+/// a model without springs.
+template <class S>
+double estimateStableTimeStep(const Model<S>& model, IntegratorKind kind);
+
+extern template double maxAngularFrequency(const Model<float>&);
+extern template double maxAngularFrequency(const Model<double>&);
+extern template double estimateStableTimeStep(const Model<float>&, IntegratorKind);
+extern template double estimateStableTimeStep(const Model<double>&, IntegratorKind);
 
 }  // namespace weft
