@@ -179,7 +179,9 @@ StepStatus StabilityCheck<S>::locate(const Vec3Array<S>& x, const Vec3Array<S>& 
     if ((dx * dx + dy * dy + dz * dz) > ratio2 * sp.restLength[s] * sp.restLength[s]) {
       status.code = StepCode::Overstretched;
       status.spring = s;
-      status.particle = std::min(i, j);
+      // Name an endpoint that moves: a pinned one is where the spring is held, not where
+      // the instability is.
+      status.particle = model_->isPinned(i) != model_->isPinned(j) ? (model_->isPinned(i) ? j : i) : std::min(i, j);
       status.value = std::sqrt(double(dx) * double(dx) + double(dy) * double(dy) + double(dz) * double(dz)) /
                      double(sp.restLength[s]);
       return status;

@@ -40,7 +40,7 @@ const char* stepCodeName(StepCode code);
 
 struct StepStatus {
   StepCode code = StepCode::Ok;
-  Index particle = -1;  // first offending particle
+  Index particle = -1;  // first offending particle (of an overstretched spring: its free end)
   Index spring = -1;    // offending spring (Overstretched)
   double value = 0;     // the offending value (NonFinite) or stretch ratio (Overstretched)
   double time = 0;      // simulated time at the start of the failed step, s
