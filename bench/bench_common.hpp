@@ -2,7 +2,6 @@
 // counter (global operator new is replaced in bench_main.cpp).
 #pragma once
 
-#include <atomic>
 #include <cstdint>
 
 namespace weftbench {

@@ -1,77 +1,59 @@
 #include "weft/integrate/integrator.hpp"
 
-#include <cmath>
+#include <iterator>
 #include <stdexcept>
+#include <string>
 
 #include "row_blocks.hpp"
 
 namespace weft {
 
-const char* integratorName(IntegratorKind kind) {
-  switch (kind) {
-    case IntegratorKind::ExplicitEuler:
-      return "euler";
-    case IntegratorKind::SymplecticEuler:
-      return "symplectic";
-    case IntegratorKind::Midpoint:
-      return "midpoint";
-    case IntegratorKind::Rk4:
-      return "rk4";
-    case IntegratorKind::VelocityVerlet:
-      return "verlet";
-  }
-  return "unknown";
+namespace {
+
+// Everything the kernel states about each method, in one row per kind (indexed by the
+// enum's value, in the order of kAllIntegrators).
+struct IntegratorTraits {
+  IntegratorKind kind;
+  const char* name;
+  int order;
+  int forceEvaluations;   // per step in steady state
+  double stabilityLimit;  // omega h on the imaginary axis; 0 = none without damping
+};
+
+constexpr IntegratorTraits kTraits[] = {
+    {IntegratorKind::ExplicitEuler, "euler", 1, 1, 0.0},
+    {IntegratorKind::SymplecticEuler, "symplectic", 1, 1, 2.0},
+    {IntegratorKind::Midpoint, "midpoint", 2, 2, 0.0},
+    {IntegratorKind::Rk4, "rk4", 4, 4, 2.8284271247461903},  // 2 sqrt(2)
+    {IntegratorKind::VelocityVerlet, "verlet", 2, 1, 2.0},
+};
+static_assert(std::size(kTraits) == std::size(kAllIntegrators), "one traits row per integrator");
+
+const IntegratorTraits& traits(IntegratorKind kind) {
+  const auto i = static_cast<std::size_t>(kind);
+  if (i >= std::size(kTraits) || kTraits[i].kind != kind)
+    throw std::invalid_argument("unknown integrator kind " + std::to_string(static_cast<int>(kind)));
+  return kTraits[i];
 }
+
+}  // namespace
+
+const char* integratorName(IntegratorKind kind) { return traits(kind).name; }
 
 IntegratorKind parseIntegrator(const std::string& name) {
-  for (IntegratorKind k : kAllIntegrators)
-    if (name == integratorName(k)) return k;
-  throw std::invalid_argument("integrator must be one of euler, symplectic, midpoint, rk4, verlet; got '" + name + "'");
+  std::string names;
+  for (const IntegratorTraits& t : kTraits) {
+    if (name == t.name) return t.kind;
+    names += names.empty() ? t.name : std::string(", ") + t.name;
+  }
+  throw std::invalid_argument("integrator must be one of " + names + "; got '" + name + "'");
 }
 
-int integratorOrder(IntegratorKind kind) {
-  switch (kind) {
-    case IntegratorKind::ExplicitEuler:
-      return 1;
-    case IntegratorKind::SymplecticEuler:
-      return 1;
-    case IntegratorKind::Midpoint:
-      return 2;
-    case IntegratorKind::Rk4:
-      return 4;
-    case IntegratorKind::VelocityVerlet:
-      return 2;
-  }
-  return 0;
-}
+int integratorOrder(IntegratorKind kind) { return traits(kind).order; }
 
-int integratorForceEvaluations(IntegratorKind kind) {
-  switch (kind) {
-    case IntegratorKind::ExplicitEuler:
-    case IntegratorKind::SymplecticEuler:
-    case IntegratorKind::VelocityVerlet:
-      return 1;
-    case IntegratorKind::Midpoint:
-      return 2;
-    case IntegratorKind::Rk4:
-      return 4;
-  }
-  return 0;
-}
+int integratorForceEvaluations(IntegratorKind kind) { return traits(kind).forceEvaluations; }
 
-double integratorStabilityLimit(IntegratorKind kind) {
-  switch (kind) {
-    case IntegratorKind::SymplecticEuler:
-    case IntegratorKind::VelocityVerlet:
-      return 2;
-    case IntegratorKind::Rk4:
-      return 2 * std::sqrt(2.0);
-    case IntegratorKind::ExplicitEuler:
-    case IntegratorKind::Midpoint:
-      return 0;
-  }
-  return 0;
-}
+double integratorStabilityLimit(IntegratorKind kind) { return traits(kind).stabilityLimit; }
 
 template <class S>
 std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particleCount) {

@@ -89,8 +89,6 @@ class ForceField {
   const Model<S>& model() const { return *model_; }
   /// Colours used by the Coloured strategy (0 for the others).
   Index colourCount() const { return colourOffsets_.empty() ? 0 : static_cast<Index>(colourOffsets_.size()) - 1; }
-  /// Spring evaluations per call of accelerations() (each spring once, every strategy).
-  Index springEvaluations() const { return model_->springCount(); }
 
   /// Grain sizes (items per parallel block). Fixed numbers: the block boundaries, and so
   /// the results, do not depend on the thread count.

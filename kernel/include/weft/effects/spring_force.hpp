@@ -13,8 +13,9 @@
 // division per spring: |dx| = sqrt(|dx|^2) and 1/|dx| are formed once, everything else is
 // multiplies. |dx| is the correctly rounded square root on purpose: the stiff term
 // ks (|dx| - r) cancels, so an ulp of |dx| becomes an absolute force error amplified by
-// ks/m. (|dx|^2 / sqrt(|dx|^2) saves nothing measurable in the full force pass and made
-// weft and a textbook implementation drift apart 10x faster.)
+// ks/m. (|dx|^2 / sqrt(|dx|^2) saves nothing measurable in the full force pass, and after
+// 100 RK4 steps of the 64^2 flag it differed from a textbook implementation by 1.3e-12
+// m/s instead of 3.3e-13.)
 // A spring whose length reaches zero has no direction; the force is then zero instead
 // of NaN (the guard is a select, not a branch, so the loop still vectorises, and the
 // division is always performed on a safe denominator so no speculation is needed).
