@@ -97,6 +97,29 @@ TEST(Cli, OptionsAreReflectedInTheSummary) {
   EXPECT_EQ(j["status"], "ok");
 }
 
+TEST(Cli, WorkPerStepReportsTheAdaptiveAndImplicitCounters) {
+  const nlohmann::json a = runJson("run flag --size 16 --steps 5 --dt 0.004 --integrator rk45 --rtol 1e-5 --atol 1e-7");
+  ASSERT_TRUE(a.is_object());
+  EXPECT_EQ(a["status"], "ok");
+  const auto& w = a["work_per_step"];
+  for (const char* key : {"force_evaluations", "substeps", "rejected_substeps", "linear_iterations",
+                          "linear_unconverged", "max_linear_residual", "max_error_estimate"})
+    EXPECT_TRUE(w.contains(key)) << key << " missing in " << w.dump();
+  EXPECT_GT(w["substeps"].get<double>(), 1.0) << "dt 4 ms is far above the flag's explicit limit: substeps";
+  EXPECT_LE(w["max_error_estimate"].get<double>(), 1.0);
+  EXPECT_NEAR(a["work_total"]["force_evaluations"].get<double>(),
+              6 * (a["work_total"]["substeps"].get<double>() + a["work_total"]["rejected_substeps"].get<double>()) + 1,
+              0.5);
+
+  const nlohmann::json i = runJson("run flag --size 16 --steps 5 --dt 0.01 --integrator implicit --cg-tolerance 1e-8");
+  ASSERT_TRUE(i.is_object());
+  EXPECT_EQ(i["status"], "ok");
+  EXPECT_TRUE(i["stable_dt_estimate"].is_null()) << "implicit Euler has no stability limit: " << i.dump();
+  EXPECT_EQ(i["work_per_step"]["force_evaluations"], 1.0);
+  EXPECT_GT(i["work_per_step"]["linear_iterations"].get<double>(), 0.0);
+  EXPECT_LE(i["work_per_step"]["max_linear_residual"].get<double>(), 1e-8);
+}
+
 TEST(Cli, StateHashMatchesTheLibrary) {
   // The same run in this process: the command line adds nothing to the physics.
   const nlohmann::json j = runJson("run flag --size 24 --steps 15 --threads 2");
@@ -169,7 +192,12 @@ INSTANTIATE_TEST_SUITE_P(
                       BadOption{"flag --size 1", "--size", "1"}, BadOption{"flag --steps abc", "--steps", "abc"},
                       BadOption{"flag --precision half", "--precision", "half"},
                       BadOption{"flag --threads -1", "--threads", "-1"},
-                      BadOption{"flag --strategy scatter", "--strategy", "scatter"}),
+                      BadOption{"flag --strategy scatter", "--strategy", "scatter"},
+                      BadOption{"flag --integrator rk45 --rtol -1", "--rtol", "-1"},
+                      BadOption{"flag --integrator rk45 --rtol nan", "--rtol", "nan"},
+                      BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
+                      BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
+                      BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -31,6 +32,7 @@ std::vector<int> stepCounts(IntegratorKind kind) {
   switch (kind) {
     case IntegratorKind::ExplicitEuler:  // error ~ 0.04 ... 0.005 of the amplitude
     case IntegratorKind::SymplecticEuler:
+    case IntegratorKind::ImplicitEuler:
       first = 1280, count = f ? 3 : 4;
       break;
     case IntegratorKind::Midpoint:  // error ~ 1e-2 ... 1e-4 (float), ... 1e-5 (double)
@@ -42,6 +44,9 @@ std::vector<int> stepCounts(IntegratorKind kind) {
     case IntegratorKind::Rk4:  // error ~ 1e-2 ... 4e-5 (float: omega dt 0.63 ... 0.16), ... 1e-8 (double)
       first = f ? 20 : 40, count = f ? 3 : 5;
       break;
+    case IntegratorKind::Rk45:  // fixed steps; smaller constant than RK4
+      first = f ? 20 : 20, count = f ? 2 : 4;
+      break;
   }
   std::vector<int> counts;
   for (int k = 0; k < count; ++k) counts.push_back(first << k);
@@ -50,9 +55,14 @@ std::vector<int> stepCounts(IntegratorKind kind) {
 
 /// Phase-space error at T, relative to the amplitude: |(x - x*, (v - v*) / omega)| / A.
 /// Using both position and velocity keeps the measure away from accidental zeros of one.
+/// With fixedStep, rk45 takes one Dormand-Prince step per step (no error control), which
+/// is what an order measurement in dt needs; the other integrators ignore it.
 template <class S>
-double oscillatorError(const Oscillator& osc, IntegratorKind kind, double T, int steps) {
-  Simulation<S> sim(osc.build<S>(), osc.options(kind, T / steps));
+double oscillatorError(const Oscillator& osc, IntegratorKind kind, double T, int steps, bool fixedStep = false) {
+  SimulationOptions options = osc.options(kind, T / steps);
+  options.integration.adaptive = !fixedStep;
+  options.integration.linearTolerance = 1e-12;  // implicit: the solve's error far below the method's
+  Simulation<S> sim(osc.build<S>(), options);
   const StepStatus status = sim.run(steps);
   EXPECT_TRUE(status.ok()) << status.message();
   EXPECT_EQ(sim.stepCount(), steps);
@@ -76,13 +86,14 @@ TYPED_TEST(IntegratorTest, ConvergesAtItsTheoreticalOrder) {
   const Oscillator osc;  // omega = 2 pi, damping ratio ~0.03
   const double T = 2.0;  // about two periods
   const int theory = integratorOrder(kind);
-  ASSERT_EQ(theory, kind == IntegratorKind::Rk4                                                  ? 4
+  ASSERT_EQ(theory, kind == IntegratorKind::Rk45                                                 ? 5
+                    : kind == IntegratorKind::Rk4                                                ? 4
                     : kind == IntegratorKind::Midpoint || kind == IntegratorKind::VelocityVerlet ? 2
                                                                                                  : 1);
 
   const std::vector<int> counts = stepCounts<S>(kind);
   std::vector<double> errors;
-  for (const int n : counts) errors.push_back(oscillatorError<S>(osc, kind, T, n));
+  for (const int n : counts) errors.push_back(oscillatorError<S>(osc, kind, T, n, /*fixedStep=*/true));
 
   std::ostringstream table, orders;
   for (size_t k = 0; k < counts.size(); ++k) table << "\n  steps " << counts[k] << ": error " << errors[k];
@@ -103,7 +114,7 @@ TYPED_TEST(IntegratorTest, OscillatorMatchesTheExactSolutionAtAFineStep) {
   const Oscillator osc;
   // A direct check of the exact solution used above (and of the sign conventions of the
   // damping): at a fine step every integrator is close to it.
-  const int steps = kind == IntegratorKind::Rk4 ? 200 : integratorOrder(kind) == 2 ? 1000 : 8000;
+  const int steps = integratorOrder(kind) >= 4 ? 200 : integratorOrder(kind) == 2 ? 1000 : 8000;
   EXPECT_LT(oscillatorError<S>(osc, kind, 1.0, steps), 0.01);
 }
 
@@ -135,6 +146,10 @@ TYPED_TEST(IntegratorTest, FreeClothConservesLinearMomentum) {
   options.dt = 5e-5;  // well inside every method's stability region (explicit Euler grows slowly)
   options.threads = 1;
   options.gravity = {0, 0, 0};
+  // Implicit Euler conserves momentum only as well as its linear solve: the sum of the
+  // CG residual is the momentum error. Solve to the cap (432 unknowns: CG's exact
+  // termination is well within 1000 iterations).
+  options.integration.linearTolerance = 0;
   const int steps = 300;
   Simulation<S> sim(ModelAndState<S>{model, cloth.state}, options);
   const StepStatus status = sim.run(steps);
@@ -160,14 +175,30 @@ TYPED_TEST(IntegratorTest, AdvanceLeavesTheInputAloneAndReportsItsWork) {
   perturbFree(flag.model, flag.state, 0.01, 0.3, 31);
   const Executor exec(1);
   ForceField<S> forces(flag.model, ForceStrategy::Gather, {0, -9.81, 0});
-  auto integrator = makeIntegrator<S>(kind, flag.model.particleCount());
+  auto integrator = makeIntegrator<S>(kind, flag.model);
   ASSERT_NE(integrator, nullptr);
   EXPECT_EQ(integrator->kind(), kind);
   const Vec3Array<S> x0 = flag.state.x, v0 = flag.state.v;
   Vec3Array<S> x1(x0.rows(), 3), v1(x0.rows(), 3);
   const StepWork work = integrator->advance(forces, x0, v0, S(1e-3), x1, v1, exec);
-  // A fresh Verlet has no a0 yet and evaluates it: one more than in steady state.
-  EXPECT_EQ(work.forceEvaluations, integratorForceEvaluations(kind) + (kind == IntegratorKind::VelocityVerlet ? 1 : 0));
+  EXPECT_FALSE(work.failed);
+  if (kind == IntegratorKind::Rk45) {
+    // Six evaluations per trial substep, plus A_1 of the first (fresh: no FSAL slope yet).
+    EXPECT_GE(work.substeps, 1);
+    EXPECT_EQ(work.forceEvaluations, 6 * (work.substeps + work.rejectedSubsteps) + 1);
+    EXPECT_LE(work.errorEstimate, 1.0);
+  } else {
+    // A fresh Verlet has no a0 yet and evaluates it: one more than in steady state.
+    EXPECT_EQ(work.forceEvaluations,
+              integratorForceEvaluations(kind) + (kind == IntegratorKind::VelocityVerlet ? 1 : 0));
+    EXPECT_EQ(work.substeps, 1);
+  }
+  if (kind == IntegratorKind::ImplicitEuler) {
+    EXPECT_GT(work.linearIterations, 0);
+    EXPECT_LE(work.linearResidual, IntegratorOptions{}.linearTolerance);
+  } else {
+    EXPECT_EQ(work.linearIterations, 0);
+  }
   EXPECT_TRUE(x0 == flag.state.x);
   EXPECT_TRUE(v0 == flag.state.v);
   EXPECT_TRUE(x1.allFinite() && v1.allFinite());
@@ -330,8 +361,13 @@ TEST(StabilityLimit, EstimateIsExactForOneMassOnAPinnedSpring) {
   Oscillator osc;
   const ModelAndState<double> built = osc.build<double>();
   EXPECT_NEAR(maxAngularFrequency(built.model), osc.omega, 1e-12 * osc.omega);
-  for (const IntegratorKind kind : kAllIntegrators)
+  for (const IntegratorKind kind : kAllIntegrators) {
+    if (!integratorIsExplicit(kind)) {
+      EXPECT_EQ(estimateStableTimeStep(built.model, kind), std::numeric_limits<double>::infinity());
+      continue;
+    }
     EXPECT_NEAR(estimateStableTimeStep(built.model, kind), integratorStabilityLimit(kind) / osc.omega, 1e-15);
+  }
 }
 
 TEST(StabilityLimit, EstimateBoundsTheFlagFromAboveAndIsUsable) {

@@ -5,8 +5,10 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "run_command.hpp"
+#include "weft/integrate/integrator.hpp"
 
 namespace {
 // CLI::PositiveNumber lets "nan" through; a time step must be a finite positive number.
@@ -24,6 +26,22 @@ const CLI::Validator finitePositive(
       return {};
     },
     "FINITE > 0");
+
+// A finite number >= 0 (tolerances).
+const CLI::Validator finiteNonNegative(
+    [](std::string& text) -> std::string {
+      double value = 0;
+      try {
+        size_t used = 0;
+        value = std::stod(text, &used);
+        if (used != text.size()) return "'" + text + "' is not a number";
+      } catch (const std::exception&) {
+        return "'" + text + "' is not a number";
+      }
+      if (!(std::isfinite(value) && value >= 0)) return "must be a finite number >= 0, got " + text;
+      return {};
+    },
+    "FINITE >= 0");
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -37,8 +55,21 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
-  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4 | verlet")
-      ->check(CLI::IsMember({"euler", "symplectic", "midpoint", "rk4", "verlet"}));
+  std::vector<std::string> integrators;
+  for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
+  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit")
+      ->check(CLI::IsMember(integrators));
+  cmd->add_option("--rtol", run.integration.relativeTolerance, "rk45: relative tolerance per coordinate (>= 0)")
+      ->check(finiteNonNegative);
+  cmd->add_option("--atol", run.integration.absoluteTolerance,
+                  "rk45: absolute tolerance per coordinate, m and m/s (> 0)")
+      ->check(finitePositive);
+  cmd->add_flag("--fixed-step", run.fixedStep, "rk45: one fixed Dormand-Prince step per step, no error control");
+  cmd->add_option("--cg-tolerance", run.integration.linearTolerance,
+                  "implicit: CG stops at |r| <= this x |b| (in [0, 1))")
+      ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
+  cmd->add_option("--cg-max-iterations", run.integration.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")

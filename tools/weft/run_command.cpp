@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -51,6 +52,35 @@ Energy<S> energy(const weft::Model<S>& model, const weft::State<S>& state, const
   return e;
 }
 
+/// Per-step averages (divide by `steps`) of a work total; residual and error estimate are
+/// the largest seen.
+nlohmann::ordered_json workJson(const weft::StepWork& w, std::int64_t steps) {
+  const double n = steps > 0 ? static_cast<double>(steps) : 1.0;
+  nlohmann::ordered_json j;
+  j["force_evaluations"] = static_cast<double>(w.forceEvaluations) / n;
+  j["substeps"] = static_cast<double>(w.substeps) / n;
+  j["rejected_substeps"] = static_cast<double>(w.rejectedSubsteps) / n;
+  j["linear_iterations"] = static_cast<double>(w.linearIterations) / n;
+  j["linear_unconverged"] = static_cast<double>(w.linearUnconverged) / n;
+  j["max_linear_residual"] = w.linearResidual;
+  j["max_error_estimate"] = w.errorEstimate;
+  return j;
+}
+
+std::string workLine(const weft::StepWork& w, std::int64_t steps) {
+  const double n = steps > 0 ? static_cast<double>(steps) : 1.0;
+  std::ostringstream out;
+  out.precision(4);
+  out << static_cast<double>(w.forceEvaluations) / n << " force evaluations";
+  if (w.substeps != steps || w.rejectedSubsteps > 0)
+    out << ", " << static_cast<double>(w.substeps) / n << " substeps (" << static_cast<double>(w.rejectedSubsteps) / n
+        << " rejected), largest error estimate " << w.errorEstimate;
+  if (w.linearIterations > 0 || w.linearResidual > 0)
+    out << ", " << static_cast<double>(w.linearIterations) / n << " CG iterations (largest residual "
+        << w.linearResidual << ", " << w.linearUnconverged << " solves at the cap)";
+  return out.str();
+}
+
 template <class S>
 int run(const RunOptions& o) {
   const weft::BuiltinScene scene = weft::parseBuiltinScene(o.scene);
@@ -60,6 +90,8 @@ int run(const RunOptions& o) {
   options.dt = o.dt > 0 ? o.dt : weft::defaultTimeStep(scene, size);
   options.threads = o.threads;
   options.forceStrategy = weft::parseForceStrategy(o.strategy);
+  options.integration = o.integration;
+  options.integration.adaptive = !o.fixedStep;
   weft::Simulation<S> sim(weft::makeBuiltinScene<S>(scene, size), options);
 
   const auto start = std::chrono::steady_clock::now();
@@ -96,8 +128,12 @@ int run(const RunOptions& o) {
     j["steps_per_second"] = stepsPerSecond;
     j["spring_evals_per_second"] = springEvalsPerSecond;
     j["force_evaluations"] = sim.forceEvaluations();
-    j["work_per_step"] = {{"force_evaluations", sim.lastWork().forceEvaluations}};
-    j["stable_dt_estimate"] = stableDt;
+    j["work_per_step"] = workJson(sim.totalWork(), done);
+    j["work_total"] = workJson(sim.totalWork(), 1);
+    if (std::isfinite(stableDt))
+      j["stable_dt_estimate"] = stableDt;
+    else
+      j["stable_dt_estimate"] = nullptr;  // no limit (implicit Euler, or a model without springs)
     j["status"] = weft::stepCodeName(status.code);
     if (!status.ok()) j["status_message"] = status.message();
     j["state_hash"] = hash;
@@ -114,8 +150,9 @@ int run(const RunOptions& o) {
         << byClass[2] << ")\n"
         << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt " << options.dt
         << " s, " << sim.threadCount() << " thread(s), forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
-        << "  stable dt    " << stableDt
-        << " s estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n"
+        << "  stable dt    " << (std::isfinite(stableDt) ? std::to_string(stableDt) + " s" : std::string("unlimited"))
+        << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n"
+        << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
         << "  steps        " << done << " of " << o.steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"

@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <string>
 
+#include "weft/integrate/integrator.hpp"
+
 namespace weftcli {
 
 struct RunOptions {
@@ -12,6 +14,8 @@ struct RunOptions {
   std::int64_t steps = 2000;
   double dt = 0;  // 0: the scene's default
   std::string integrator = "rk4";
+  weft::IntegratorOptions integration;  // rk45 tolerances, implicit CG settings
+  bool fixedStep = false;               // rk45 without error control
   std::string precision = "double";
   int threads = 0;
   std::string strategy = "auto";

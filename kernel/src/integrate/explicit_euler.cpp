@@ -19,7 +19,7 @@ class ExplicitEuler final : public Integrator<S> {
       }
     };
     forces.accelerations(x0, v0, makeSink<S>(combine), exec);
-    return {1};
+    return {1, 1};
   }
 };
 }  // namespace

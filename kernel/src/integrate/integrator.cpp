@@ -1,6 +1,9 @@
 #include "weft/integrate/integrator.hpp"
 
+#include <cmath>
 #include <iterator>
+#include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -26,6 +29,10 @@ constexpr IntegratorTraits kTraits[] = {
     {IntegratorKind::Midpoint, "midpoint", 2, 2, 0.0},
     {IntegratorKind::Rk4, "rk4", 4, 4, 2.8284271247461903},  // 2 sqrt(2)
     {IntegratorKind::VelocityVerlet, "verlet", 2, 1, 2.0},
+    // |R(iy)| = 1 of R(z) = 1 + z + ... + z^5/120 + z^6/600, Dormand-Prince's fifth-order
+    // solution (bisection to 1e-15; tests/test_integrate.cpp measures it).
+    {IntegratorKind::Rk45, "rk45", 5, 6, 0.99718900863267},
+    {IntegratorKind::ImplicitEuler, "implicit", 1, 1, std::numeric_limits<double>::infinity()},
 };
 static_assert(std::size(kTraits) == std::size(kAllIntegrators), "one traits row per integrator");
 
@@ -55,9 +62,37 @@ int integratorForceEvaluations(IntegratorKind kind) { return traits(kind).forceE
 
 double integratorStabilityLimit(IntegratorKind kind) { return traits(kind).stabilityLimit; }
 
+namespace {
+std::string str(double v) {
+  std::ostringstream o;
+  o.precision(17);
+  o << v;
+  return o.str();
+}
+}  // namespace
+
+void validateIntegratorOptions(const IntegratorOptions& o) {
+  const auto bad = [](const char* field, const std::string& value, const char* rule) {
+    throw std::invalid_argument(std::string("IntegratorOptions.") + field + " " + rule + ", got " + value);
+  };
+  if (!(std::isfinite(o.relativeTolerance) && o.relativeTolerance >= 0))
+    bad("relativeTolerance", str(o.relativeTolerance), "must be finite and >= 0");
+  // > 0: a coordinate passing through 0 would otherwise make its scaled error 0 / 0.
+  if (!(std::isfinite(o.absoluteTolerance) && o.absoluteTolerance > 0))
+    bad("absoluteTolerance", str(o.absoluteTolerance), "must be finite and > 0");
+  if (!(std::isfinite(o.minSubstep) && o.minSubstep > 0))
+    bad("minSubstep", str(o.minSubstep), "must be finite and > 0 (s)");
+  if (o.maxSubsteps < 1) bad("maxSubsteps", std::to_string(o.maxSubsteps), "must be >= 1");
+  if (!(std::isfinite(o.linearTolerance) && o.linearTolerance >= 0 && o.linearTolerance < 1))
+    bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
+  if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
+}
+
 template <class S>
-std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particleCount) {
-  if (particleCount < 0) throw std::invalid_argument("makeIntegrator: particleCount must be >= 0");
+std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, const Model<S>& model,
+                                              const IntegratorOptions& options) {
+  validateIntegratorOptions(options);
+  const Index particleCount = model.particleCount();
   switch (kind) {
     case IntegratorKind::ExplicitEuler:
       return detail::makeExplicitEuler<S>(particleCount);
@@ -69,11 +104,17 @@ std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particl
       return detail::makeRk4<S>(particleCount);
     case IntegratorKind::VelocityVerlet:
       return detail::makeVelocityVerlet<S>(particleCount);
+    case IntegratorKind::Rk45:
+      return detail::makeRk45<S>(particleCount, options);
+    case IntegratorKind::ImplicitEuler:
+      return detail::makeImplicitEuler<S>(model, options);
   }
   throw std::invalid_argument("makeIntegrator: unknown integrator kind");
 }
 
-template std::unique_ptr<Integrator<float>> makeIntegrator(IntegratorKind, Index);
-template std::unique_ptr<Integrator<double>> makeIntegrator(IntegratorKind, Index);
+template std::unique_ptr<Integrator<float>> makeIntegrator(IntegratorKind, const Model<float>&,
+                                                           const IntegratorOptions&);
+template std::unique_ptr<Integrator<double>> makeIntegrator(IntegratorKind, const Model<double>&,
+                                                            const IntegratorOptions&);
 
 }  // namespace weft

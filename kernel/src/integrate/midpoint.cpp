@@ -28,7 +28,7 @@ class Midpoint final : public Integrator<S> {
       }
     };
     forces.accelerations(xm_, vm_, makeSink<S>(fullStep), exec);
-    return {2};
+    return {2, 1};
   }
 
  private:

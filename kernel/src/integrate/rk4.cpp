@@ -55,7 +55,7 @@ class Rk4 final : public Integrator<S> {
       }
     };
     forces.accelerations(xa_, va_, makeSink<S>(stage4), exec);
-    return {4};
+    return {4, 1};
   }
 
  private:

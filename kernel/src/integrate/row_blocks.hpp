@@ -36,5 +36,9 @@ template <class S>
 std::unique_ptr<Integrator<S>> makeRk4(Index n);
 template <class S>
 std::unique_ptr<Integrator<S>> makeVelocityVerlet(Index n);
+template <class S>
+std::unique_ptr<Integrator<S>> makeRk45(Index n, const IntegratorOptions& options);
+template <class S>
+std::unique_ptr<Integrator<S>> makeImplicitEuler(const Model<S>& model, const IntegratorOptions& options);
 
 }  // namespace weft::detail

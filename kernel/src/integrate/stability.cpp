@@ -17,6 +17,8 @@ const char* stepCodeName(StepCode code) {
       return "non-finite";
     case StepCode::Overstretched:
       return "overstretched";
+    case StepCode::StepSizeUnderflow:
+      return "step-size-underflow";
   }
   return "unknown";
 }
@@ -36,6 +38,11 @@ std::string StepStatus::message() const {
       out << "overstretched spring " << spring << " (particle " << particle << "): length is " << value
           << " x rest length after the step starting at t = " << time
           << " s (the integrator is likely past its stability limit: reduce dt)";
+      break;
+    case StepCode::StepSizeUnderflow:
+      out << "adaptive step-size control gave up in the step starting at t = " << time << " s after " << value
+          << " trial substeps (error still above tolerance at the minimum substep, or too many substeps: loosen "
+             "the tolerances, raise maxSubsteps, or use an implicit integrator for stiff models)";
       break;
   }
   return out.str();

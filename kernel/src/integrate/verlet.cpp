@@ -26,6 +26,7 @@ class VelocityVerlet final : public Integrator<S> {
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {
     StepWork work;
+    work.substeps = 1;
     if (!primed_) {
       forces.accelerations(x0, v0, a_, exec);  // a0
       ++work.forceEvaluations;

@@ -41,7 +41,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
       options_(validated(options)),
       executor_(makeExecutor(options_)),
       forces_(*model_, options_.forceStrategy, options_.gravity),
-      integrator_(makeIntegrator<S>(options_.integrator, model_->particleCount())),
+      integrator_(makeIntegrator<S>(options_.integrator, *model_, options_.integration)),
       stability_(*model_, options_.stability),
       nextX_(model_->particleCount(), 3),
       nextV_(model_->particleCount(), 3) {
@@ -83,9 +83,15 @@ StepStatus Simulation<S>::step() {
   executor_->run([&] {
     lastWork_ =
         integrator_->advance(forces_, state_.x, state_.v, static_cast<S>(options_.dt), nextX_, nextV_, *executor_);
-    status_ = stability_.check(nextX_, nextV_, *executor_);
+    if (lastWork_.failed) {
+      status_ = StepStatus{};
+      status_.code = StepCode::StepSizeUnderflow;
+      status_.value = static_cast<double>(lastWork_.substeps + lastWork_.rejectedSubsteps);
+    } else {
+      status_ = stability_.check(nextX_, nextV_, *executor_);
+    }
   });
-  forceEvaluations_ += lastWork_.forceEvaluations;
+  totalWork_ += lastWork_;
   if (!status_.ok()) {
     status_.time = state_.time;
     integrator_->reset();  // anything it carried belongs to the rejected candidate

@@ -18,10 +18,19 @@
 //   VelocityVerlet   x1 = x0 + h v0 + h^2/2 a0,  v1 = v0 + h/2 (a0 + a1),
 //                    a1 = a(x1, v0 + h a0); a1 is kept as the next step's a0, so one
 //                    force evaluation per step (two on the first)                order 2
+//   Rk45             Dormand-Prince 5(4): seven stages, first-same-as-last (six force
+//                    evaluations per accepted substep), embedded fourth-order error
+//                    estimate; adaptive mode covers the step h with substeps chosen by
+//                    a PI controller, fixed mode takes one fifth-order step    order 5
+//   ImplicitEuler    backward Euler linearised once per step (Baraff & Witkin 1998):
+//                    (M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0), solved by
+//                    matrix-free preconditioned conjugate gradients; x1 = x0 + h v1
+//                    (one force evaluation, one Jacobian product per CG iteration)  order 1
 //
 // See docs/integrators.md for stability limits and when to use which.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -29,29 +38,73 @@
 
 namespace weft {
 
-enum class IntegratorKind { ExplicitEuler, SymplecticEuler, Midpoint, Rk4, VelocityVerlet };
+enum class IntegratorKind { ExplicitEuler, SymplecticEuler, Midpoint, Rk4, VelocityVerlet, Rk45, ImplicitEuler };
 
-/// Short name used on the command line: euler, symplectic, midpoint, rk4, verlet.
+/// Short name used on the command line: euler, symplectic, midpoint, rk4, verlet, rk45,
+/// implicit.
 const char* integratorName(IntegratorKind kind);
 /// Parses a short name; throws std::invalid_argument naming the value otherwise.
 IntegratorKind parseIntegrator(const std::string& name);
 /// Global order of accuracy.
 int integratorOrder(IntegratorKind kind);
 /// Force evaluations of a step in steady state (Verlet's first step after a reset costs
-/// one more: see Integrator::reset).
+/// one more: see Integrator::reset; for Rk45 this is per accepted substep, and the first
+/// substep after a reset costs one more).
 int integratorForceEvaluations(IntegratorKind kind);
 /// Largest omega h at which the method is stable on an undamped spring (the imaginary
 /// axis of its stability region): 2 for symplectic Euler and Verlet, 2 sqrt(2) for RK4,
+/// 0.9972 for a fixed Dormand-Prince step (|R(iy)| <= 1 up to there, and grows slowly
+/// beyond: 1.0000014 per step at 1, 1.03 at 2), infinity for implicit Euler (A-stable),
 /// 0 for explicit Euler and midpoint, which amplify an undamped oscillation at any step.
+/// For adaptive Rk45 the limit applies to its substeps, which the controller chooses.
 double integratorStabilityLimit(IntegratorKind kind);
+/// True for the methods whose stability limit is finite (all explicit ones).
+inline bool integratorIsExplicit(IntegratorKind kind) { return kind != IntegratorKind::ImplicitEuler; }
 /// Every integrator, in the order above (for parameterised tests and sweeps).
-inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEuler, IntegratorKind::SymplecticEuler,
-                                                     IntegratorKind::Midpoint, IntegratorKind::Rk4,
-                                                     IntegratorKind::VelocityVerlet};
+inline constexpr IntegratorKind kAllIntegrators[] = {
+    IntegratorKind::ExplicitEuler,  IntegratorKind::SymplecticEuler, IntegratorKind::Midpoint,
+    IntegratorKind::Rk4,            IntegratorKind::VelocityVerlet,  IntegratorKind::Rk45,
+    IntegratorKind::ImplicitEuler};
+
+/// Parameters of the adaptive and the implicit methods (the others have none). Checked by
+/// validateIntegratorOptions; the Simulation checks them at construction.
+struct IntegratorOptions {
+  // Rk45
+  bool adaptive = true;             // false: one fixed fifth-order step per step (for order tests)
+  double relativeTolerance = 1e-6;  // per coordinate, relative to max(|y0|, |y1|)
+  double absoluteTolerance = 1e-6;  // per coordinate (> 0): m for positions, m/s for velocities
+  double minSubstep = 1e-12;        // s; an error still too large at this substep fails the step
+  Index maxSubsteps = 100000;       // accepted + rejected substeps per step before it fails
+  // ImplicitEuler
+  double linearTolerance = 1e-6;  // CG stops when |r| <= linearTolerance |b| (filtered 2-norms)
+  Index maxLinearIterations = 1000;
+};
+/// Throws std::invalid_argument naming the field and the value of the first bad option.
+void validateIntegratorOptions(const IntegratorOptions& options);
 
 /// The work one step did, reported by every integrator the same way.
 struct StepWork {
   Index forceEvaluations = 0;  // calls of ForceField::accelerations
+  Index substeps = 0;          // accepted (sub)steps: 1 for fixed-step methods
+  Index rejectedSubsteps = 0;  // Rk45: trial substeps rejected by the error control
+  Index linearIterations = 0;  // ImplicitEuler: CG iterations (one Jacobian product each)
+  Index linearUnconverged = 0; // ImplicitEuler: solves that stopped at maxLinearIterations
+  double linearResidual = 0;   // ImplicitEuler: final |r| / |b| of the solve (largest if summed)
+  double errorEstimate = 0;    // Rk45: largest scaled error of an accepted substep (<= 1)
+  bool failed = false;         // Rk45: error control gave up (minSubstep or maxSubsteps); the
+                               // result must not be used
+  /// Adds another step's work (counts add, residual and error take the maximum).
+  StepWork& operator+=(const StepWork& o) {
+    forceEvaluations += o.forceEvaluations;
+    substeps += o.substeps;
+    rejectedSubsteps += o.rejectedSubsteps;
+    linearIterations += o.linearIterations;
+    linearUnconverged += o.linearUnconverged;
+    linearResidual = linearResidual > o.linearResidual ? linearResidual : o.linearResidual;
+    errorEstimate = errorEstimate > o.errorEstimate ? errorEstimate : o.errorEstimate;
+    failed = failed || o.failed;
+    return *this;
+  }
 };
 
 template <class S>
@@ -71,11 +124,16 @@ class Integrator {
                            Vec3Array<S>& v1, const Executor& exec) = 0;
 };
 
-/// An integrator with its stage buffers sized for `particleCount` particles.
+/// An integrator with its stage buffers sized for `model` (which must outlive it when the
+/// kind is ImplicitEuler: its spring Jacobian reads the model's springs). Throws
+/// std::invalid_argument for bad options.
 template <class S>
-std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, Index particleCount);
+std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, const Model<S>& model,
+                                              const IntegratorOptions& options = {});
 
-extern template std::unique_ptr<Integrator<float>> makeIntegrator(IntegratorKind, Index);
-extern template std::unique_ptr<Integrator<double>> makeIntegrator(IntegratorKind, Index);
+extern template std::unique_ptr<Integrator<float>> makeIntegrator(IntegratorKind, const Model<float>&,
+                                                                  const IntegratorOptions&);
+extern template std::unique_ptr<Integrator<double>> makeIntegrator(IntegratorKind, const Model<double>&,
+                                                                   const IntegratorOptions&);
 
 }  // namespace weft

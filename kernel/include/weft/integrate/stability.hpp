@@ -35,6 +35,7 @@ enum class StepCode {
   Ok = 0,
   NonFinite,      // a position or velocity is NaN or infinite
   Overstretched,  // a spring exceeds maxStretch x rest length
+  StepSizeUnderflow,  // adaptive error control gave up (IntegratorOptions minSubstep / maxSubsteps)
 };
 const char* stepCodeName(StepCode code);
 
@@ -42,7 +43,8 @@ struct StepStatus {
   StepCode code = StepCode::Ok;
   Index particle = -1;  // first offending particle (of an overstretched spring: its free end)
   Index spring = -1;    // offending spring (Overstretched)
-  double value = 0;     // the offending value (NonFinite) or stretch ratio (Overstretched)
+  double value = 0;     // the offending value (NonFinite), stretch ratio (Overstretched) or
+                        // trial substeps taken (StepSizeUnderflow)
   double time = 0;      // simulated time at the start of the failed step, s
   bool ok() const { return code == StepCode::Ok; }
   /// One line for people (allocates; not for the hot path).

@@ -8,7 +8,7 @@
 // buffers and the StabilityCheck. A step is
 //
 //     integrator.advance(x, v) -> (x', v')   (each stage: forces -> accelerations -> combination)
-//     check (x', v')                          finite? no spring beyond maxStretch?
+//     check (x', v')                          error control gave up? finite? no spring beyond maxStretch?
 //     ok: swap (x', v') in, t += dt           failure: keep (x, v), return the status
 //
 // so instability is reported as a status naming the first bad particle and the state is
@@ -34,6 +34,7 @@ struct SimulationOptions {
   ForceStrategy forceStrategy = ForceStrategy::Auto;
   Vec3d gravity{0, -9.81, 0};  // m/s^2
   StabilityOptions stability;
+  IntegratorOptions integration;  // tolerances of rk45, CG settings of implicit
 };
 
 template <class S>
@@ -65,9 +66,11 @@ class Simulation {
   /// Status of the last step (Ok until a step fails).
   const StepStatus& status() const { return status_; }
   Index stepCount() const { return stepCount_; }
-  /// Work of the last step, and the total over all steps.
+  /// Work of the last step (accepted or not), and the sum over all steps taken (counts
+  /// summed, residual and error estimate the largest).
   const StepWork& lastWork() const { return lastWork_; }
-  std::int64_t forceEvaluations() const { return forceEvaluations_; }
+  const StepWork& totalWork() const { return totalWork_; }
+  std::int64_t forceEvaluations() const { return totalWork_.forceEvaluations; }
 
  private:
   std::shared_ptr<const Model<S>> model_;
@@ -81,8 +84,8 @@ class Simulation {
   Vec3Array<S> nextV_;  // (n x 3) candidate velocities, m/s
   StepStatus status_;
   StepWork lastWork_;
+  StepWork totalWork_;
   Index stepCount_ = 0;
-  std::int64_t forceEvaluations_ = 0;
 };
 
 extern template class Simulation<float>;

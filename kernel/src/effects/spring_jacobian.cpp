@@ -1,0 +1,180 @@
+#include "weft/effects/spring_jacobian.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace weft {
+
+namespace {
+
+template <class S>
+const S* col(const Vec3Array<S>& m, int c) {
+  return m.data() + c * m.rows();
+}
+template <class S>
+S* col(Vec3Array<S>& m, int c) {
+  return m.data() + c * m.rows();
+}
+
+// Springs [b, e): direction and coefficients of the linearisation (see the header).
+template <class S>
+[[gnu::noinline]] void linearizeSprings(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
+                                        const S* __restrict x, const S* __restrict y, const S* __restrict z,
+                                        const S* __restrict rest, const S* __restrict ks, const S* __restrict kd,
+                                        S h, S* __restrict dx, S* __restrict dy, S* __restrict dz,
+                                        S* __restrict alpha, S* __restrict beta, S* __restrict gamma) {
+  const S h2 = h * h;
+  for (Index s = b; s < e; ++s) {
+    const Index i = A[s], j = B[s];
+    const S lx = x[i] - x[j], ly = y[i] - y[j], lz = z[i] - z[j];
+    const S len2 = lx * lx + ly * ly + lz * lz;
+    const bool hasDirection = len2 > std::numeric_limits<S>::min();
+    const S len = std::sqrt(len2);
+    const S invLen = (hasDirection ? S(1) : S(0)) / (hasDirection ? len : S(1));
+    // c = 1 - r / L clamped to [0, 1]; a spring of rest length 0 is linear (c = 1), even
+    // at length 0; any other spring without a direction contributes nothing.
+    const S c0 = S(1) - rest[s] * invLen;
+    const S c = rest[s] == S(0) ? S(1) : hasDirection ? (c0 > S(0) ? c0 : S(0)) : S(0);
+    dx[s] = lx * invLen;
+    dy[s] = ly * invLen;
+    dz[s] = lz * invLen;
+    alpha[s] = h2 * ks[s] * c;
+    beta[s] = h2 * ks[s] * (S(1) - c);
+    gamma[s] = h * kd[s];
+  }
+}
+
+// Springs [b, e): g = alpha u + (beta [+ gamma]) d (d . u), u = p_a - p_b.
+template <class S, bool kDamping>
+[[gnu::noinline]] void springProducts(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
+                                      const S* __restrict px, const S* __restrict py, const S* __restrict pz,
+                                      const S* __restrict dx, const S* __restrict dy, const S* __restrict dz,
+                                      const S* __restrict alpha, const S* __restrict beta,
+                                      const S* __restrict gamma, S* __restrict gx, S* __restrict gy,
+                                      S* __restrict gz) {
+  for (Index s = b; s < e; ++s) {
+    const Index i = A[s], j = B[s];
+    const S ux = px[i] - px[j], uy = py[i] - py[j], uz = pz[i] - pz[j];
+    const S along = (kDamping ? beta[s] + gamma[s] : beta[s]) * (dx[s] * ux + dy[s] * uy + dz[s] * uz);
+    gx[s] = alpha[s] * ux + along * dx[s];
+    gy[s] = alpha[s] * uy + along * dy[s];
+    gz[s] = alpha[s] * uz + along * dz[s];
+  }
+}
+
+}  // namespace
+
+template <class S>
+SpringJacobian<S>::SpringJacobian(const Model<S>& model)
+    : model_(&model),
+      direction_(model.springCount(), 3),
+      alpha_(model.springCount()),
+      beta_(model.springCount()),
+      gamma_(model.springCount()),
+      g_(model.springCount(), 3),
+      diagonal_(model.particleCount(), 3) {
+  const Index n = model.particleCount();
+  const Index m = model.springCount();
+  const Springs<S>& sp = model.springs();
+  incidenceOffsets_.setZero(n + 1);
+  for (Index s = 0; s < m; ++s) {
+    ++incidenceOffsets_[sp.a[s] + 1];
+    ++incidenceOffsets_[sp.b[s] + 1];
+  }
+  for (Index i = 0; i < n; ++i) incidenceOffsets_[i + 1] += incidenceOffsets_[i];
+  incidence_.resize(2 * m);
+  std::vector<Index> fill(incidenceOffsets_.data(), incidenceOffsets_.data() + n);
+  for (Index s = 0; s < m; ++s) {  // springs in index order: a fixed summation order per particle
+    incidence_[fill[sp.a[s]]++] = 2 * s;
+    incidence_[fill[sp.b[s]]++] = 2 * s + 1;
+  }
+  direction_.setZero();
+  alpha_.setZero();
+  beta_.setZero();
+  gamma_.setZero();
+  g_.setZero();
+  diagonal_.setZero();
+}
+
+template <class S>
+void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& exec) {
+  const Springs<S>& sp = model_->springs();
+  exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
+    linearizeSprings(b, e, sp.a.data(), sp.b.data(), col(x, 0), col(x, 1), col(x, 2), sp.restLength.data(),
+                     sp.stiffness.data(), sp.damping.data(), h, col(direction_, 0), col(direction_, 1),
+                     col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data());
+  });
+  // diag(A)_i = m_i + sum over the springs of i of alpha + (beta + gamma) d_c^2.
+  exec.parallelFor(model_->particleCount(), ForceField<S>::kSinkBlock, [&](Index b, Index e) {
+    const Index* off = incidenceOffsets_.data();
+    const Index* inc = incidence_.data();
+    for (Index i = b; i < e; ++i) {
+      S sum[3] = {0, 0, 0};
+      for (Index k = off[i]; k < off[i + 1]; ++k) {
+        const Index s = inc[k] >> 1;
+        const S along = beta_[s] + gamma_[s];
+        for (int c = 0; c < 3; ++c) sum[c] += alpha_[s] + along * direction_(s, c) * direction_(s, c);
+      }
+      for (int c = 0; c < 3; ++c) diagonal_(i, c) = model_->mass()[i] + sum[c];
+    }
+  });
+}
+
+template <class S>
+template <bool kSystem>
+void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
+  const Springs<S>& sp = model_->springs();
+  exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
+    springProducts<S, kSystem>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),
+                               col(direction_, 1), col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data(),
+                               col(g_, 0), col(g_, 1), col(g_, 2));
+  });
+  constexpr Index kBlock = ForceField<S>::kSinkBlock;
+  exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
+    const Index* __restrict off = incidenceOffsets_.data();
+    const Index* __restrict inc = incidence_.data();
+    const S* __restrict mass = model_->mass().data();
+    const S* __restrict Gx = col(g_, 0);
+    const S* __restrict Gy = col(g_, 1);
+    const S* __restrict Gz = col(g_, 2);
+    const S* __restrict Px = col(p, 0);
+    const S* __restrict Py = col(p, 1);
+    const S* __restrict Pz = col(p, 2);
+    alignas(64) S yx[kBlock], yy[kBlock], yz[kBlock];
+    for (Index i = b; i < e; ++i) {
+      S sx = 0, sy = 0, sz = 0;
+      for (Index k = off[i]; k < off[i + 1]; ++k) {
+        const Index s = inc[k] >> 1;
+        const S sign = (inc[k] & 1) ? S(-1) : S(1);
+        sx += sign * Gx[s];
+        sy += sign * Gy[s];
+        sz += sign * Gz[s];
+      }
+      if constexpr (kSystem) {
+        sx += mass[i] * Px[i];
+        sy += mass[i] * Py[i];
+        sz += mass[i] * Pz[i];
+      }
+      yx[i - b] = sx;
+      yy[i - b] = sy;
+      yz[i - b] = sz;
+    }
+    sink(b, e - b, yx, yy, yz);
+  });
+}
+
+template <class S>
+void SpringJacobian<S>::systemProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
+  product<true>(p, sink, exec);
+}
+
+template <class S>
+void SpringJacobian<S>::stiffnessProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink,
+                                         const Executor& exec) {
+  product<false>(p, sink, exec);
+}
+
+template class SpringJacobian<float>;
+template class SpringJacobian<double>;
+
+}  // namespace weft

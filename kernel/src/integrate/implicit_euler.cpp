@@ -1,0 +1,212 @@
+// Backward Euler linearised once per step (Baraff & Witkin 1998, section 4):
+//
+//     (M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0),   v1 = v0 + dv,  x1 = x0 + h v1
+//
+// solved by the modified preconditioned conjugate gradient of their section 5.3:
+// constraint filtering keeps dv = 0 on pinned particles (the filter zeroes their rows of
+// b, of every residual and search direction), a Jacobi preconditioner, and a warm start
+// from the previous step's dv. The matrix products come from SpringJacobian (matrix-free,
+// deterministic). The force f0 includes everything the ForceField computes (springs,
+// gravity); only the springs enter the Jacobian.
+//
+// Dot products are reduced deterministically: one partial per block of
+// ForceField::kSinkBlock particles (the blocks of every pass here), accumulated in double
+// and summed in block order after the pass, so the iterates are bitwise the same for any
+// thread count. Products fuse the per-particle work that follows them: q = A p is
+// filtered and dotted with p in the pass that forms it; dv, r and the new (r, z) dot
+// product share one pass. Per iteration: one Jacobian product (two passes) and two more
+// passes.
+//
+// Stopping: |r| <= linearTolerance |b| (2-norms of the filtered vectors), or
+// maxLinearIterations. A solve that stops at the cap is still used (the step is a
+// linearisation anyway; the stability check guards the result) and is reported in
+// StepWork.linearUnconverged with its residual.
+#include <cmath>
+#include <vector>
+
+#include "row_blocks.hpp"
+#include "weft/effects/spring_jacobian.hpp"
+
+namespace weft::detail {
+
+namespace {
+
+template <class S>
+class ImplicitEuler final : public Integrator<S> {
+ public:
+  ImplicitEuler(const Model<S>& model, const IntegratorOptions& o)
+      : options_(o),
+        jacobian_(model),
+        free_(model.particleCount()),
+        b_(model.particleCount(), 3),
+        dv_(model.particleCount(), 3),
+        r_(model.particleCount(), 3),
+        p_(model.particleCount(), 3),
+        q_(model.particleCount(), 3),
+        inverseDiagonal_(model.particleCount(), 3),
+        partialA_(static_cast<size_t>(Executor::blockCount(model.particleCount(), kBlock)), 0.0),
+        partialB_(partialA_.size(), 0.0) {
+    for (Index i = 0; i < model.particleCount(); ++i) free_[i] = model.isPinned(i) ? S(0) : S(1);
+    dv_.setZero();
+  }
+  IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
+  void reset() override { warm_ = false; }
+
+  StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
+                   Vec3Array<S>& v1, const Executor& exec) override {
+    StepWork work;
+    work.substeps = 1;
+    const Index n = static_cast<Index>(x0.rows());
+    const ScalarArray<S>& mass = jacobian_.model().mass();
+
+    // b = h m a0 (filtered): a0 includes springs and gravity.
+    auto rhsForce = [&](Index b, Index m, const S* ax, const S* ay, const S* az) {
+      const auto f = free_.segment(b, m).array();
+      const auto mh = h * mass.segment(b, m).array();
+      for (int c = 0; c < 3; ++c) rows(b_, c, b, m) = f * mh * accel(ax, ay, az, c, m);
+    };
+    forces.accelerations(x0, v0, makeSink<S>(rhsForce), exec);
+    ++work.forceEvaluations;
+    jacobian_.linearize(x0, h, exec);
+    // b -= (-h^2 df/dx) v0; then |b|^2 per block. Jacobi: 1 / diag(A) on free particles.
+    auto rhsStiffness = [&](Index b, Index m, const S* yx, const S* yy, const S* yz) {
+      const auto f = free_.segment(b, m).array();
+      double bb = 0;
+      for (int c = 0; c < 3; ++c) {
+        auto bc = rows(b_, c, b, m);
+        bc -= f * accel(yx, yy, yz, c, m);
+        bb += bc.template cast<double>().square().sum();
+        rows(inverseDiagonal_, c, b, m) = f / rows(jacobian_.diagonal(), c, b, m);
+      }
+      partialA_[static_cast<size_t>(b / kBlock)] = bb;
+    };
+    jacobian_.stiffnessProduct(v0, makeSink<S>(rhsStiffness), exec);
+    const double bNorm = std::sqrt(sumPartials(partialA_));
+
+    // r = b - A dv (warm start) or r = b (cold); then rz = r . M^-1 r and |r|^2.
+    if (warm_) {
+      auto residual = [&](Index b, Index m, const S* yx, const S* yy, const S* yz) {
+        const auto f = free_.segment(b, m).array();
+        for (int c = 0; c < 3; ++c) rows(r_, c, b, m) = rows(b_, c, b, m) - f * accel(yx, yy, yz, c, m);
+        reduceResidual(b, m);
+      };
+      jacobian_.systemProduct(dv_, makeSink<S>(residual), exec);
+      ++work.linearIterations;  // the product costs an iteration
+    } else {
+      exec.parallelFor(n, kBlock, [&](Index b, Index e) {
+        for (int c = 0; c < 3; ++c) {
+          rows(dv_, c, b, e - b).setZero();
+          rows(r_, c, b, e - b) = rows(b_, c, b, e - b);
+        }
+        reduceResidual(b, e - b);
+      });
+    }
+    double rz = sumPartials(partialA_);
+    double rNorm = std::sqrt(sumPartials(partialB_));
+    const double target = options_.linearTolerance * bNorm;
+
+    Index iterations = 0;
+    double beta = 0;
+    while (rNorm > target && bNorm > 0) {
+      if (iterations == options_.maxLinearIterations) {
+        ++work.linearUnconverged;
+        break;
+      }
+      // p = z + beta p, z = M^-1 r.
+      const S betaS = static_cast<S>(beta);
+      const bool first = iterations == 0;
+      exec.parallelFor(n, kBlock, [&](Index b, Index e) {
+        for (int c = 0; c < 3; ++c) {
+          auto pc = rows(p_, c, b, e - b);
+          const auto z = rows(inverseDiagonal_, c, b, e - b) * rows(r_, c, b, e - b);
+          if (first)
+            pc = z;
+          else
+            pc = z + betaS * pc;
+        }
+      });
+      // q = A p (filtered); p . q per block.
+      auto applied = [&](Index b, Index m, const S* yx, const S* yy, const S* yz) {
+        const auto f = free_.segment(b, m).array();
+        double pq = 0;
+        for (int c = 0; c < 3; ++c) {
+          auto qc = rows(q_, c, b, m);
+          qc = f * accel(yx, yy, yz, c, m);
+          pq += (qc.template cast<double>() * rows(p_, c, b, m).template cast<double>()).sum();
+        }
+        partialA_[static_cast<size_t>(b / kBlock)] = pq;
+      };
+      jacobian_.systemProduct(p_, makeSink<S>(applied), exec);
+      const double pq = sumPartials(partialA_);
+      if (!(pq > 0)) break;  // A is SPD on the free subspace: only exhaustion or NaN gets here
+      const S alpha = static_cast<S>(rz / pq);
+      // dv += alpha p, r -= alpha q; new rz and |r|^2.
+      exec.parallelFor(n, kBlock, [&](Index b, Index e) {
+        for (int c = 0; c < 3; ++c) {
+          rows(dv_, c, b, e - b) += alpha * rows(p_, c, b, e - b);
+          rows(r_, c, b, e - b) -= alpha * rows(q_, c, b, e - b);
+        }
+        reduceResidual(b, e - b);
+      });
+      const double rzNew = sumPartials(partialA_);
+      rNorm = std::sqrt(sumPartials(partialB_));
+      beta = rzNew / rz;
+      rz = rzNew;
+      ++iterations;
+    }
+    work.linearIterations += iterations;
+    work.linearResidual = bNorm > 0 ? rNorm / bNorm : 0.0;
+
+    // v1 = v0 + dv, x1 = x0 + h v1.
+    exec.parallelFor(n, kBlock, [&](Index b, Index e) {
+      for (int c = 0; c < 3; ++c) {
+        rows(v1, c, b, e - b) = rows(v0, c, b, e - b) + rows(dv_, c, b, e - b);
+        rows(x1, c, b, e - b) = rows(x0, c, b, e - b) + h * rows(v1, c, b, e - b);
+      }
+    });
+    warm_ = true;
+    return work;
+  }
+
+ private:
+  static constexpr Index kBlock = ForceField<S>::kSinkBlock;
+
+  /// partialA = r . M^-1 r, partialB = |r|^2 for the block starting at b.
+  void reduceResidual(Index b, Index m) {
+    double rz = 0, rr = 0;
+    for (int c = 0; c < 3; ++c) {
+      const auto r = rows(r_, c, b, m).template cast<double>();
+      rz += (r * rows(inverseDiagonal_, c, b, m).template cast<double>() * r).sum();
+      rr += r.square().sum();
+    }
+    partialA_[static_cast<size_t>(b / kBlock)] = rz;
+    partialB_[static_cast<size_t>(b / kBlock)] = rr;
+  }
+  static double sumPartials(const std::vector<double>& partials) {
+    double sum = 0;
+    for (const double p : partials) sum += p;  // block order: the same for any thread count
+    return sum;
+  }
+
+  IntegratorOptions options_;
+  SpringJacobian<S> jacobian_;
+  ScalarArray<S> free_;            // (n) 1 for free particles, 0 for pinned (the filter)
+  Vec3Array<S> b_;                 // (n x 3) right-hand side, kg m/s
+  Vec3Array<S> dv_;                // (n x 3) velocity change (kept as the next warm start), m/s
+  Vec3Array<S> r_, p_, q_;         // (n x 3) CG residual, direction, A p
+  Vec3Array<S> inverseDiagonal_;   // (n x 3) Jacobi preconditioner (0 on pinned particles)
+  std::vector<double> partialA_;   // per block of kBlock particles
+  std::vector<double> partialB_;
+  bool warm_ = false;              // dv_ holds the previous step's solution
+};
+
+}  // namespace
+
+template <class S>
+std::unique_ptr<Integrator<S>> makeImplicitEuler(const Model<S>& model, const IntegratorOptions& options) {
+  return std::make_unique<ImplicitEuler<S>>(model, options);
+}
+template std::unique_ptr<Integrator<float>> makeImplicitEuler(const Model<float>&, const IntegratorOptions&);
+template std::unique_ptr<Integrator<double>> makeImplicitEuler(const Model<double>&, const IntegratorOptions&);
+
+}  // namespace weft::detail
