@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <vector>
@@ -312,7 +314,9 @@ bool staysBounded(IntegratorKind kind, double omegaDt, int steps) {
   // A small amplitude: the 1000x growth that counts as unstable must stay short of the
   // pinned point (|x| < rest), where the spring |dx| - r turns into a bounded double well.
   osc.amplitude = 1e-4;
-  Simulation<double> sim(osc.build<double>(), osc.options(kind, omegaDt / osc.omega));
+  SimulationOptions options = osc.options(kind, omegaDt / osc.omega);
+  options.integration.adaptive = false;  // rk45: the fixed step's limit
+  Simulation<double> sim(osc.build<double>(), options);
   double worst = 0;
   for (int k = 0; k < steps; ++k) {
     if (!sim.step().ok()) return false;
@@ -344,6 +348,66 @@ TEST(StabilityLimit, MeasuredLimitsMatchTheoryWithinFivePercent) {
     const double measured = measuredLimit(kind, 0.1, 4.0);
     ::testing::Test::RecordProperty(std::string("limit_") + integratorName(kind), std::to_string(measured));
     EXPECT_NEAR(measured, theory, 0.05 * theory) << "measured omega h limit " << measured;
+  }
+}
+
+/// Per-step growth factor of the phase-space radius of the undamped oscillator, measured
+/// over as many steps as keep it between 1e-4 and 1e3 times its start (the displacement is
+/// read from x ~ 0.5 m: below 1e-8 m its rounding would show; above 0.1 m the spring
+/// would pass the pinned end). In the coordinates (u, v/omega)
+/// the oscillator is a rotation, so a step of a Runge-Kutta or implicit method multiplies
+/// the radius exactly by |R(i omega h)|, R the method's stability function.
+double measuredAmplification(IntegratorKind kind, double omegaDt, double theory) {
+  Oscillator osc;
+  osc.damping = 0;
+  osc.amplitude = 1e-4;
+  SimulationOptions options = osc.options(kind, omegaDt / osc.omega);
+  options.integration.adaptive = false;
+  options.integration.linearTolerance = 1e-15;
+  Simulation<double> sim(osc.build<double>(), options);
+  const double decades = std::abs(std::log10(theory));
+  const int steps = std::clamp(static_cast<int>((theory < 1 ? 4 : 3) / std::max(decades, 1e-300)), 1, 200);
+  EXPECT_TRUE(sim.run(steps).ok()) << sim.status().message();
+  const double u = sim.state().x(1, 0) - osc.rest, v = sim.state().v(1, 0) / osc.omega;
+  return std::pow(std::hypot(u, v) / osc.amplitude, 1.0 / steps);
+}
+
+TEST(StabilityLimit, PerStepAmplificationIsTheStabilityFunction) {
+  using C = std::complex<double>;
+  const auto rk4 = [](C z) { return 1.0 + z + z * z / 2.0 + z * z * z / 6.0 + z * z * z * z / 24.0; };
+  const auto dp5 = [&](C z) { return rk4(z) + std::pow(z, 5) / 120.0 + std::pow(z, 6) / 600.0; };
+  const auto implicit = [](C z) { return 1.0 / (1.0 - z); };
+  struct Case {
+    IntegratorKind kind;
+    std::function<C(C)> R;
+    std::vector<double> omegaH;
+  };
+  const Case cases[] = {
+      {IntegratorKind::Rk4, rk4, {0.5, 1.5, 2.8, 2.9}},
+      // Dormand-Prince's fifth-order solution: |R| <= 1 up to 0.99719, then barely above 1.
+      {IntegratorKind::Rk45, dp5, {0.5, 0.95, 0.99, 1.05, 1.5, 2.0}},
+      {IntegratorKind::ImplicitEuler, implicit, {0.1, 1, 10, 100, 1000}},
+  };
+  for (const Case& c : cases)
+    for (const double y : c.omegaH) {
+      const double theory = std::abs(c.R(C(0, y)));
+      const double measured = measuredAmplification(c.kind, y, theory);
+      EXPECT_NEAR(measured, theory, 1e-9) << integratorName(c.kind) << " at omega h = " << y;
+    }
+  // The limit in the traits table is where |R(iy)| crosses 1.
+  const double limit = integratorStabilityLimit(IntegratorKind::Rk45);
+  EXPECT_LE(std::abs(dp5(C(0, limit * (1 - 1e-9)))), 1.0);
+  EXPECT_GT(std::abs(dp5(C(0, limit * (1 + 1e-9)))), 1.0);
+}
+
+TEST(StabilityLimit, ImplicitEulerIsStableAtEveryStepTried) {
+  // Up to omega h = 1000: the oscillation decays, never grows; the energy only falls.
+  EXPECT_EQ(integratorStabilityLimit(IntegratorKind::ImplicitEuler), std::numeric_limits<double>::infinity());
+  for (const double omegaDt : {0.01, 0.1, 1.0, 2.0, 2.9, 10.0, 100.0, 1000.0}) {
+    SCOPED_TRACE(omegaDt);
+    EXPECT_TRUE(staysBounded(IntegratorKind::ImplicitEuler, omegaDt, 2000));
+    const EnergyRun r = runUndampedOscillator<double>(IntegratorKind::ImplicitEuler, omegaDt, 200);
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
   }
 }
 
@@ -405,6 +469,177 @@ TEST(VerletEnergy, StaysBoundedOnAnUndampedSpring) {
   // exact invariant is a modified energy) and does not drift.
   EXPECT_LT(r.maxDeviation, 0.3 * omegaDt * omegaDt);
   EXPECT_LT(r.lastWindowMax, 1.5 * r.firstWindowMax + 1e-12);
+}
+
+}  // namespace
+}  // namespace weft::test
+
+// ---------------------------------------------------------------------------------------
+// Adaptive rk45
+// ---------------------------------------------------------------------------------------
+
+namespace weft::test {
+namespace {
+
+TEST(Rk45Adaptive, GlobalErrorFollowsTheTolerance) {
+  // Frames of 0.1 s (omega h = 0.63 for the oscillator): each one is covered by as many
+  // substeps as the tolerance asks for.
+  const Oscillator osc;
+  const double T = 2.0, frame = 0.1;
+  double previousError = 1, previousSubsteps = 0;
+  for (const double tol : {1e-3, 1e-5, 1e-7, 1e-9}) {
+    SCOPED_TRACE(tol);
+    SimulationOptions options = osc.options(IntegratorKind::Rk45, frame);
+    options.integration.relativeTolerance = tol;
+    options.integration.absoluteTolerance = tol;
+    Simulation<double> sim(osc.build<double>(), options);
+    ASSERT_TRUE(sim.run(20).ok()) << sim.status().message();
+    EXPECT_NEAR(sim.state().time, T, 1e-12);
+    const auto [x, v] = osc.exact(T);
+    const double error = std::hypot(sim.state().x(1, 0) - x, (sim.state().v(1, 0) - v) / osc.omega) / osc.amplitude;
+    const StepWork& w = sim.totalWork();
+    ::testing::Test::RecordProperty("rk45_tol_" + std::to_string(tol),
+                                    std::to_string(error) + " error, " + std::to_string(w.substeps) + " substeps");
+    // Local error control: the global error is a modest multiple of the tolerance (the
+    // scaled coordinates are ~0.5 m, so rtol and atol act alike here).
+    EXPECT_LT(error, 20 * tol);
+    EXPECT_LT(error, previousError);
+    EXPECT_GT(static_cast<double>(w.substeps), previousSubsteps);
+    EXPECT_LE(w.errorEstimate, 1.0);
+    EXPECT_EQ(w.forceEvaluations, 6 * (w.substeps + w.rejectedSubsteps) + 1);
+    previousError = error;
+    previousSubsteps = static_cast<double>(w.substeps);
+  }
+}
+
+TEST(Rk45Adaptive, FramesOfAStiffClothAreCoveredBySubsteps) {
+  // The 16^2 flag at 1/60 s frames: omega_max h ~ 55 times the fixed step's limit.
+  ModelAndState<double> flag = makeFlag<double>(16);
+  SimulationOptions options = flagOptions(IntegratorKind::Rk45, ForceStrategy::Auto, 1, 1.0 / 60);
+  Simulation<double> sim(std::move(flag), options);
+  ASSERT_TRUE(sim.run(6).ok()) << sim.status().message();
+  const StepWork& w = sim.totalWork();
+  EXPECT_GT(w.substeps, 6 * 10);
+  EXPECT_LE(w.errorEstimate, 1.0);
+  EXPECT_NEAR(sim.state().time, 0.1, 1e-15);
+  EXPECT_LT(sim.state().x.col(1).minCoeff(), -0.01);  // it fell
+}
+
+TEST(Rk45Adaptive, GivingUpIsAStatusAndLeavesTheStateAlone) {
+  // (The flat flag's first frames are nearly free fall, smooth enough for big substeps;
+  // once the springs engage, the cloth needs substeps of ~1e-4 s.)
+  SimulationOptions options = flagOptions(IntegratorKind::Rk45, ForceStrategy::Auto, 1, 1.0 / 60);
+  options.integration.minSubstep = 1e-3;  // far above the substep this stiff cloth needs
+  Simulation<double> sim(makeFlag<double>(12), options);
+  State<double> before;
+  StepStatus status;
+  for (int k = 0; k < 60 && status.ok(); ++k) {
+    before = sim.state();
+    status = sim.step();
+  }
+  ASSERT_EQ(status.code, StepCode::StepSizeUnderflow) << status.message();
+  EXPECT_NE(status.message().find("substep"), std::string::npos) << status.message();
+  EXPECT_TRUE(sim.lastWork().failed);
+  EXPECT_EQ(stateHash(sim.state()), stateHash(before));
+  EXPECT_EQ(sim.state().time, before.time);
+  EXPECT_EQ(sim.step().code, StepCode::StepSizeUnderflow);  // refuses until something changes
+
+  options.integration.minSubstep = 1e-12;
+  options.integration.maxSubsteps = 5;  // the other way to give up
+  Simulation<double> capped(makeFlag<double>(12), options);
+  status = StepStatus{};
+  for (int k = 0; k < 60 && status.ok(); ++k) status = capped.step();
+  EXPECT_EQ(status.code, StepCode::StepSizeUnderflow);
+  EXPECT_EQ(capped.lastWork().substeps + capped.lastWork().rejectedSubsteps, 5)
+      << capped.lastWork().substeps << " accepted, " << capped.lastWork().rejectedSubsteps << " rejected";
+}
+
+TEST(Rk45Adaptive, BadOptionsAreRejectedByName) {
+  const ModelAndState<double> flag = makeFlag<double>(4);
+  const auto expectRejected = [&](IntegratorOptions o, const std::string& field, const std::string& value) {
+    SimulationOptions options;
+    options.integrator = IntegratorKind::Rk45;
+    options.integration = o;
+    try {
+      Simulation<double> sim(ModelAndState<double>{flag.model, flag.state}, options);
+      ADD_FAILURE() << field << " = " << value << " accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(field), std::string::npos) << what;
+      EXPECT_NE(what.find(value), std::string::npos) << what;
+    }
+  };
+  IntegratorOptions o;
+  o.relativeTolerance = -1;
+  expectRejected(o, "relativeTolerance", "-1");
+  o = {};
+  o.absoluteTolerance = 0;
+  expectRejected(o, "absoluteTolerance", "0");
+  o = {};
+  o.absoluteTolerance = std::numeric_limits<double>::quiet_NaN();
+  expectRejected(o, "absoluteTolerance", "nan");
+  o = {};
+  o.minSubstep = 0;
+  expectRejected(o, "minSubstep", "0");
+  o = {};
+  o.maxSubsteps = 0;
+  expectRejected(o, "maxSubsteps", "0");
+  o = {};
+  o.linearTolerance = 1;
+  expectRejected(o, "linearTolerance", "1");
+  o = {};
+  o.maxLinearIterations = -3;
+  expectRejected(o, "maxLinearIterations", "-3");
+}
+
+// ---------------------------------------------------------------------------------------
+// Implicit Euler's linear solve
+// ---------------------------------------------------------------------------------------
+
+TEST(ImplicitSolve, ResidualMeetsTheToleranceAndIterationsGrowAsItTightens) {
+  Index previous = 0;
+  for (const double tol : {1e-3, 1e-6, 1e-9}) {
+    SCOPED_TRACE(tol);
+    SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, 1, 1.0 / 60);
+    options.integration.linearTolerance = tol;
+    Simulation<double> sim(makeFlag<double>(16), options);
+    ASSERT_TRUE(sim.run(3).ok()) << sim.status().message();
+    const StepWork& w = sim.totalWork();
+    EXPECT_LE(w.linearResidual, tol);
+    EXPECT_EQ(w.linearUnconverged, 0);
+    EXPECT_GT(w.linearIterations, previous);
+    previous = w.linearIterations;
+  }
+}
+
+TEST(ImplicitSolve, AnIterationCapIsReportedAndTheStepStillTaken) {
+  SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, 1, 1.0 / 60);
+  options.integration.maxLinearIterations = 2;
+  Simulation<double> sim(makeFlag<double>(16), options);
+  // (The first step from the flat, unstretched flag is free fall: A is M there on the
+  // gravity direction and one iteration solves it exactly.)
+  ASSERT_TRUE(sim.run(3).ok()) << sim.status().message();
+  EXPECT_EQ(sim.lastWork().linearUnconverged, 1);
+  EXPECT_EQ(sim.lastWork().linearIterations, 2);  // (the warm start's residual product is not an iteration)
+  EXPECT_GT(sim.lastWork().linearResidual, options.integration.linearTolerance);
+}
+
+TEST(ImplicitSolve, PinnedParticlesStayPutAtAHugeStep) {
+  // 0.1 s: omega_max h ~ 360. (At 0.5 s the first step, linearised at the flat unstretched
+  // cloth where the springs have no transverse stiffness, is a free fall of 1.2 m and the
+  // stability check flags the stretch: one linearised solve per step is not a nonlinear
+  // solve.)
+  ModelAndState<double> flag = makeFlag<double>(16);
+  const State<double> initial = flag.state;
+  SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, 2, 0.1);
+  Simulation<double> sim(std::move(flag), options);
+  ASSERT_TRUE(sim.run(10).ok()) << sim.status().message();
+  for (Index i = 0; i < sim.model().particleCount(); ++i)
+    if (sim.model().isPinned(i)) {
+      EXPECT_TRUE(sim.state().x.row(i) == initial.x.row(i)) << i;
+      EXPECT_TRUE(sim.state().v.row(i).isZero(0)) << i;
+    }
+  EXPECT_TRUE(allFinite(sim.state()));
 }
 
 }  // namespace

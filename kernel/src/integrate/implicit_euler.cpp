@@ -90,8 +90,7 @@ class ImplicitEuler final : public Integrator<S> {
         for (int c = 0; c < 3; ++c) rows(r_, c, b, m) = rows(b_, c, b, m) - f * accel(yx, yy, yz, c, m);
         reduceResidual(b, m);
       };
-      jacobian_.systemProduct(dv_, makeSink<S>(residual), exec);
-      ++work.linearIterations;  // the product costs an iteration
+      jacobian_.systemProduct(dv_, makeSink<S>(residual), exec);  // one product more than the iterations
     } else {
       exec.parallelFor(n, kBlock, [&](Index b, Index e) {
         for (int c = 0; c < 3; ++c) {
