@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "run_command.hpp"
+#include "study_command.hpp"
 #include "weft/integrate/integrator.hpp"
 
 namespace {
@@ -76,6 +77,16 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
   cmd->add_flag("--json", run.json, "Print exactly one JSON object instead of the summary");
 
+  weftcli::StudyOptions study;
+  CLI::App* studyCmd = app.add_subcommand(
+      "study", "Error, stability limit and wall time of every integrator x dt x precision x threads (CSV, Markdown, plot)");
+  studyCmd->add_flag("--quick", study.quick, "Small scenes and a coarse sweep (under a minute)");
+  studyCmd->add_option("--out", study.out, "Output directory (default: study)");
+  studyCmd->add_option("--threads", study.threads, "Thread counts to time (default: 1 2)")
+      ->check(CLI::Range(1, 1024))
+      ->expected(1, 16);
+  studyCmd->add_flag("!--no-plot", study.plot, "Do not draw the plot");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -84,6 +95,7 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
+    if (studyCmd->parsed()) return weftcli::runStudy(study);
     return weftcli::runScene(run);
   } catch (const std::exception& e) {
     std::cerr << "weft: " << e.what() << "\n";

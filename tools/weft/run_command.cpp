@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "energy.hpp"
 #include "weft/weft.hpp"
 
 namespace weftcli {
@@ -26,30 +27,6 @@ std::string hex(std::uint64_t h) {
   char buffer[19];
   std::snprintf(buffer, sizeof buffer, "0x%016llx", static_cast<unsigned long long>(h));
   return buffer;
-}
-
-template <class S>
-struct Energy {
-  double kinetic = 0, spring = 0, gravity = 0;
-};
-
-template <class S>
-Energy<S> energy(const weft::Model<S>& model, const weft::State<S>& state, const weft::Vec3d& g) {
-  Energy<S> e;
-  for (weft::Index i = 0; i < model.particleCount(); ++i) {
-    const double m = model.mass()[i];
-    const double v2 = static_cast<double>(state.v.row(i).squaredNorm());
-    e.kinetic += 0.5 * m * v2;
-    if (!model.isPinned(i))
-      e.gravity -= m * (g.x * double(state.x(i, 0)) + g.y * double(state.x(i, 1)) + g.z * double(state.x(i, 2)));
-  }
-  const auto& sp = model.springs();
-  for (weft::Index s = 0; s < sp.count(); ++s) {
-    const double len = static_cast<double>((state.x.row(sp.a[s]) - state.x.row(sp.b[s])).norm());
-    const double d = len - double(sp.restLength[s]);
-    e.spring += 0.5 * double(sp.stiffness[s]) * d * d;
-  }
-  return e;
 }
 
 /// Per-step averages (divide by `steps`) of a work total; residual and error estimate are
@@ -106,7 +83,7 @@ int run(const RunOptions& o) {
   const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
   const std::string hash = hex(weft::stateHash(state));
   const auto byClass = model.springCountByClass();
-  const Energy<S> e = energy(model, state, options.gravity);
+  const Energy e = energy(model, state, options.gravity);
   const double lowest = static_cast<double>(state.x.col(1).minCoeff());
   const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
 

@@ -1,0 +1,433 @@
+// `weft study`: error, stability limit and wall time side by side.
+//
+// For each scene (oscillator: exact solution; rope released from horizontal and the flag:
+// reference = RK4 in double at a small step, checked against half that step), each
+// integrator and precision:
+//   * the largest stable dt, by bisection on dt (a run over the scene's duration that the
+//     stability check does not stop), next to the kernel's estimate;
+//   * a sweep of dt below it (rk45: of its tolerance, at frames of ~1/60 s; implicit:
+//     of dt up to far beyond the explicit limits), each point run on every thread count:
+//     error against the reference at T/2 and T, energy error, wall time per simulated
+//     second, work counters, and whether the state is bitwise the same as on 1 thread.
+// Output: study.csv (one row per run), study.md (tables), study.png/.svg (plot by
+// tools/plot_study.py through /usr/bin/python3).
+#include "study_command.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "energy.hpp"
+#include "weft/weft.hpp"
+
+#ifndef WEFT_SOURCE_DIR
+#define WEFT_SOURCE_DIR "."
+#endif
+
+namespace weftcli {
+
+namespace {
+
+using weft::Index;
+using weft::IntegratorKind;
+
+// The damped oscillator of the tests: particle 1 (0.5 kg) on a spring to pinned particle
+// 0, omega = 2 pi, damping ratio ~0.03, released 0.25 m from rest length 0.5 m.
+struct Oscillator {
+  double mass = 0.5, omega = 2 * M_PI, damping = 0.2, rest = 0.5, amplitude = 0.25;
+  double stiffness() const { return mass * omega * omega; }
+  std::pair<double, double> exact(double t) const {
+    const double zeta = damping / (2 * mass * omega), sigma = zeta * omega;
+    const double wd = omega * std::sqrt(1 - zeta * zeta), a = amplitude, b = sigma * amplitude / wd;
+    const double e = std::exp(-sigma * t), c = std::cos(wd * t), s = std::sin(wd * t);
+    return {rest + e * (a * c + b * s), e * (-sigma * (a * c + b * s) + (-a * wd * s + b * wd * c))};
+  }
+};
+
+struct SceneDef {
+  std::string name;
+  double duration = 1;  // s
+  Index size = 0;       // rope particles / flag side
+  weft::Vec3d gravity{0, -9.81, 0};
+  bool analytic = false;
+};
+
+template <class S>
+weft::ModelAndState<S> build(const SceneDef& scene) {
+  if (scene.analytic) {
+    const Oscillator osc;
+    weft::ModelBuilder<S> b;
+    b.addParticle({0, 0, 0}, 1.0);
+    b.addParticle({osc.rest + osc.amplitude, 0, 0}, osc.mass);
+    b.pin(0);
+    b.addSpring(0, 1, {osc.stiffness(), osc.damping}, weft::SpringClass::Structural, osc.rest);
+    return b.build();
+  }
+  return scene.name == "rope" ? weft::makeRope<S>(scene.size) : weft::makeFlag<S>(scene.size);
+}
+
+struct RunResult {
+  weft::StepStatus status;
+  double wall = 0;                    // s
+  weft::Vec3Array<double> xHalf, x;   // positions at T/2 and T
+  weft::Vec3Array<double> v;          // velocities at T
+  double energy = 0;                  // J at T
+  weft::StepWork work;
+  std::uint64_t hash = 0;
+  Index steps = 0;
+};
+
+template <class S>
+RunResult run(const SceneDef& scene, IntegratorKind kind, double dt, const weft::IntegratorOptions& io, int threads) {
+  weft::SimulationOptions options;
+  options.integrator = kind;
+  const Index steps = std::max<Index>(2, 2 * static_cast<Index>(std::llround(scene.duration / dt / 2)));
+  options.dt = scene.duration / static_cast<double>(steps);
+  options.threads = threads;
+  options.gravity = scene.gravity;
+  options.integration = io;
+  if (scene.analytic) options.stability.maxStretch = 1e6;  // checked against the exact solution instead
+  weft::Simulation<S> sim(build<S>(scene), options);
+  RunResult r;
+  const auto start = std::chrono::steady_clock::now();
+  r.status = sim.run(steps / 2);
+  r.xHalf = sim.state().x.template cast<double>();
+  if (r.status.ok()) r.status = sim.run(steps / 2);
+  r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.x = sim.state().x.template cast<double>();
+  r.v = sim.state().v.template cast<double>();
+  r.energy = energy(sim.model(), sim.state(), scene.gravity).total();
+  r.work = sim.totalWork();
+  r.hash = weft::stateHash(sim.state());
+  r.steps = sim.stepCount();
+  return r;
+}
+
+RunResult runAny(bool isFloat, const SceneDef& scene, IntegratorKind kind, double dt, const weft::IntegratorOptions& io,
+                 int threads) {
+  return isFloat ? run<float>(scene, kind, dt, io, threads) : run<double>(scene, kind, dt, io, threads);
+}
+
+struct Reference {
+  weft::Vec3Array<double> xHalf, x;
+  double energy = 0;
+  double selfCheck = 0;  // max |x(dt_ref) - x(dt_ref / 2)| at T, m (0 for the exact solution)
+  double dt = 0;
+};
+
+Reference reference(const SceneDef& scene, bool quick) {
+  Reference ref;
+  if (scene.analytic) {
+    const Oscillator osc;
+    const auto [xh, vh] = osc.exact(scene.duration / 2);
+    const auto [x, v] = osc.exact(scene.duration);
+    ref.xHalf = weft::Vec3Array<double>::Zero(2, 3);
+    ref.x = weft::Vec3Array<double>::Zero(2, 3);
+    ref.xHalf(1, 0) = xh;
+    ref.x(1, 0) = x;
+    ref.energy = 0.5 * osc.mass * v * v + 0.5 * osc.stiffness() * (x - osc.rest) * (x - osc.rest);
+    (void)vh;
+    return ref;
+  }
+  const weft::ModelAndState<double> built = build<double>(scene);
+  const double dt = (quick ? 0.1 : 0.05) * weft::estimateStableTimeStep(built.model, IntegratorKind::Rk4);
+  const RunResult coarse = run<double>(scene, IntegratorKind::Rk4, dt, {}, 2);
+  const RunResult fine = run<double>(scene, IntegratorKind::Rk4, dt / 2, {}, 2);
+  if (!coarse.status.ok() || !fine.status.ok())
+    throw std::runtime_error("study: the reference run of " + scene.name + " failed: " + fine.status.message());
+  ref.xHalf = fine.xHalf;
+  ref.x = fine.x;
+  ref.energy = fine.energy;
+  ref.selfCheck = (coarse.x - fine.x).cwiseAbs().maxCoeff();
+  ref.dt = dt / 2;
+  return ref;
+}
+
+/// Error of a run against the reference: for the oscillator the phase-space error
+/// relative to the amplitude, |(x - x*, (v - v*) / omega)| / A; for rope and flag the
+/// largest position error of any particle, m.
+double errorAt(const SceneDef& scene, const weft::Vec3Array<double>& x, const weft::Vec3Array<double>* v,
+               const weft::Vec3Array<double>& xRef, double t) {
+  if (scene.analytic) {
+    const Oscillator osc;
+    const auto [xe, ve] = osc.exact(t);
+    const double dv = v ? ((*v)(1, 0) - ve) / osc.omega : 0.0;
+    return std::hypot(x(1, 0) - xe, dv) / osc.amplitude;
+  }
+  return (x - xRef).cwiseAbs().maxCoeff();
+}
+
+/// Largest dt (within a factor 2^(1/2^iterations) of the octave range) at which the
+/// scene runs stably; nullopt if even `lo / 4^k` fails, +infinity if `hi` passes. A probe
+/// runs for the scene's duration but at least 1000 steps, and is stable if the stability
+/// check does not stop it and its total energy ends below E0 + energyMargin (nothing
+/// drives these scenes: physically the energy only falls, so a gain of that size is the
+/// growth of an unstable method, caught even where no spring overstretches).
+std::optional<double> largestStableStep(bool isFloat, SceneDef scene, IntegratorKind kind, double lo, double hi,
+                                        int iterations, int threads, double energy0, double energyMargin) {
+  weft::IntegratorOptions io;
+  io.adaptive = false;
+  io.linearTolerance = isFloat ? 1e-5 : 1e-8;
+  const double duration = scene.duration;
+  const auto stable = [&](double dt) {
+    scene.duration = std::max(duration, 1000 * dt);
+    const RunResult r = runAny(isFloat, scene, kind, dt, io, threads);
+    return r.status.ok() && r.energy <= energy0 + energyMargin;
+  };
+  if (stable(hi)) return std::numeric_limits<double>::infinity();
+  while (!stable(lo)) {
+    lo /= 4;
+    if (lo < 1e-9) return std::nullopt;
+  }
+  for (int k = 0; k < iterations; ++k) {
+    const double mid = std::sqrt(lo * hi);
+    (stable(mid) ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+std::string fmt(double v, int precision = 4) {
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  if (std::isnan(v)) return "nan";
+  std::ostringstream o;
+  o.precision(precision);
+  o << v;
+  return o.str();
+}
+
+struct Row {
+  std::string scene, integrator, precision;
+  int threads = 1;
+  double dt = 0, tolerance = 0;
+  Index steps = 0;
+  double simulated = 0, error = NAN, errorHalf = NAN, energyError = NAN, wall = 0, wallPerSimulated = 0;
+  double forceEvaluations = 0, linearIterations = 0, rejected = 0, substeps = 0;
+  double stableMeasured = NAN, stableEstimate = NAN;
+  std::string status;
+  bool sameAsOneThread = true;
+};
+
+}  // namespace
+
+int runStudy(const StudyOptions& o) {
+  namespace fs = std::filesystem;
+  fs::create_directories(o.out);
+  const bool quick = o.quick;
+  std::vector<SceneDef> scenes;
+  {
+    SceneDef osc;
+    osc.name = "oscillator";
+    osc.duration = 2;
+    osc.analytic = true;
+    osc.gravity = {0, 0, 0};
+    SceneDef rope;
+    rope.name = "rope";
+    rope.size = 32;
+    rope.duration = quick ? 0.5 : 1.0;
+    SceneDef flag;
+    flag.name = quick ? "flag24" : "flag64";
+    flag.size = quick ? 24 : 64;
+    flag.duration = quick ? 0.1 : 0.25;
+    scenes = {osc, rope, flag};
+  }
+  const int maxThreads = *std::max_element(o.threads.begin(), o.threads.end());
+  const std::vector<double> dtFactors = quick ? std::vector<double>{0.9, 0.3, 0.1}
+                                              : std::vector<double>{0.9, 0.5, 0.25, 0.125, 1.0 / 16, 1.0 / 32};
+  const std::vector<double> implicitFactors = quick ? std::vector<double>{30, 3, 0.3}
+                                                    : std::vector<double>{100, 30, 10, 3, 1, 0.3};
+  const std::vector<double> tolerances = quick ? std::vector<double>{1e-3, 1e-5, 1e-7}
+                                               : std::vector<double>{1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
+  const int bisections = quick ? 4 : 7;
+  const int repetitions = quick ? 1 : 3;
+  const auto started = std::chrono::steady_clock::now();
+
+  std::vector<Row> rows;
+  std::ostringstream stableTable, referenceTable;
+  for (const SceneDef& scene : scenes) {
+    std::cerr << "study: " << scene.name << " (T = " << scene.duration << " s): reference" << std::endl;
+    const Reference ref = reference(scene, quick);
+    referenceTable << "| " << scene.name << " | " << scene.duration << " | "
+                   << (scene.analytic ? std::string("exact solution")
+                                      : "RK4 double, dt " + fmt(ref.dt) + " s; vs 2 dt: " + fmt(ref.selfCheck) + " m")
+                   << " |\n";
+    const weft::ModelAndState<double> model = build<double>(scene);
+    const double omegaMax = weft::maxAngularFrequency(model.model);
+    const double energy0 = energy(model.model, model.state, scene.gravity).total();
+    const double energyMargin = std::max(std::abs(energy0), std::abs(ref.energy - energy0));
+    for (const IntegratorKind kind : weft::kAllIntegrators) {
+      for (const bool isFloat : {false, true}) {
+        const std::string precision = isFloat ? "float" : "double";
+        const double estimate = weft::estimateStableTimeStep(model.model, kind);
+        // Scale of the bisection: the estimate, or for methods without an imaginary-axis
+        // limit (explicit Euler, midpoint: damping alone keeps them stable) symplectic
+        // Euler's; implicit Euler is tried up to the whole duration.
+        const double scale =
+            estimate > 0 && std::isfinite(estimate) ? estimate
+                                                    : weft::estimateStableTimeStep(model.model, IntegratorKind::SymplecticEuler);
+        std::optional<double> measured;
+        if (kind == IntegratorKind::ImplicitEuler)
+          measured = largestStableStep(isFloat, scene, kind, scale, scene.duration / 2, bisections, maxThreads,
+                                        energy0, energyMargin);
+        else if (kind != IntegratorKind::Rk45)
+          measured = largestStableStep(isFloat, scene, kind, scale / 16, scale * 16, bisections, maxThreads, energy0,
+                                        energyMargin);
+        else  // fixed-step rk45 (the adaptive one is limited only by its substeps)
+          measured = largestStableStep(isFloat, scene, kind, scale / 4, scale * 64, bisections, maxThreads, energy0,
+                                        energyMargin);
+        const double limit = measured.value_or(NAN);
+        stableTable << "| " << scene.name << " | " << weft::integratorName(kind) << " | " << precision << " | "
+                    << fmt(estimate) << " | " << (measured ? fmt(limit) : std::string("none found")) << " | "
+                    << (measured && estimate > 0 && std::isfinite(estimate) && std::isfinite(limit)
+                            ? fmt(limit / estimate, 3)
+                            : std::string("-"))
+                    << " | " << (std::isfinite(limit) ? fmt(limit * omegaMax, 3) : std::string("-")) << " |\n";
+
+        // The sweep.
+        struct Point {
+          double dt, tolerance;
+        };
+        std::vector<Point> points;
+        if (kind == IntegratorKind::Rk45) {
+          const double frame = scene.duration / std::ceil(scene.duration * 60 - 1e-9);
+          for (const double tol : tolerances) points.push_back({frame, tol});
+        } else if (kind == IntegratorKind::ImplicitEuler) {
+          const double rk4 = weft::estimateStableTimeStep(model.model, IntegratorKind::Rk4);
+          for (const double f : implicitFactors)
+            if (f * rk4 <= scene.duration / 2) points.push_back({f * rk4, 0});
+        } else if (measured && std::isfinite(limit)) {
+          for (const double f : dtFactors) points.push_back({f * limit, 0});
+        }
+        for (const Point& p : points) {
+          weft::IntegratorOptions io;
+          io.relativeTolerance = io.absoluteTolerance = p.tolerance > 0 ? p.tolerance : 1e-6;
+          io.linearTolerance = isFloat ? 1e-5 : 1e-8;
+          std::uint64_t hashOne = 0;
+          for (const int threads : o.threads) {
+            std::vector<double> walls;
+            RunResult r;
+            for (int rep = 0; rep < repetitions; ++rep) {
+              r = runAny(isFloat, scene, kind, p.dt, io, threads);
+              walls.push_back(r.wall);
+            }
+            std::sort(walls.begin(), walls.end());
+            Row row;
+            row.scene = scene.name;
+            row.integrator = weft::integratorName(kind);
+            row.precision = precision;
+            row.threads = threads;
+            row.steps = r.steps;
+            row.dt = scene.duration / static_cast<double>(std::max<Index>(r.steps, 1));
+            if (!r.status.ok()) row.dt = p.dt;
+            row.tolerance = p.tolerance;
+            row.simulated = row.dt * static_cast<double>(r.steps);
+            row.status = r.status.ok() ? "ok" : weft::stepCodeName(r.status.code);
+            row.wall = walls[walls.size() / 2];
+            row.wallPerSimulated = r.status.ok() ? row.wall / scene.duration : NAN;
+            if (r.status.ok()) {
+              row.error = errorAt(scene, r.x, &r.v, ref.x, scene.duration);
+              row.errorHalf = errorAt(scene, r.xHalf, nullptr, ref.xHalf, scene.duration / 2);
+              row.energyError = std::abs(r.energy - ref.energy) / std::max(std::abs(ref.energy), 1e-12);
+            }
+            const double n = static_cast<double>(std::max<Index>(r.steps, 1));
+            row.forceEvaluations = static_cast<double>(r.work.forceEvaluations) / n;
+            row.linearIterations = static_cast<double>(r.work.linearIterations) / n;
+            row.rejected = static_cast<double>(r.work.rejectedSubsteps) / n;
+            row.substeps = static_cast<double>(r.work.substeps) / n;
+            row.stableMeasured = limit;
+            row.stableEstimate = estimate;
+            if (threads == o.threads.front()) hashOne = r.hash;
+            row.sameAsOneThread = r.hash == hashOne;
+            rows.push_back(row);
+          }
+        }
+      }
+      std::cerr << "study: " << scene.name << " " << weft::integratorName(kind) << " done ("
+                << fmt(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 3) << " s)"
+                << std::endl;
+    }
+  }
+
+  // CSV.
+  const fs::path csvPath = fs::path(o.out) / "study.csv";
+  {
+    std::ofstream csv(csvPath);
+    csv << "scene,integrator,precision,threads,dt,tolerance,steps,simulated_seconds,error,error_half,energy_drift,"
+           "wall_seconds,wall_per_simulated_second,force_evaluations,linear_iterations,rejected_substeps,substeps,"
+           "stable_dt_measured,stable_dt_estimate,status,bitwise_same_as_first_thread_count\n";
+    csv.precision(9);
+    for (const Row& r : rows)
+      csv << r.scene << ',' << r.integrator << ',' << r.precision << ',' << r.threads << ',' << r.dt << ','
+          << r.tolerance << ',' << r.steps << ',' << r.simulated << ',' << fmt(r.error, 9) << ','
+          << fmt(r.errorHalf, 9) << ',' << fmt(r.energyError, 9) << ',' << r.wall << ','
+          << fmt(r.wallPerSimulated, 9) << ',' << r.forceEvaluations << ',' << r.linearIterations << ','
+          << r.rejected << ',' << r.substeps << ',' << fmt(r.stableMeasured, 9) << ',' << fmt(r.stableEstimate, 9)
+          << ',' << r.status << ',' << (r.sameAsOneThread ? 1 : 0) << '\n';
+    if (!csv) {
+      std::cerr << "weft study: could not write " << csvPath << "\n";
+      return 1;
+    }
+  }
+
+  // Markdown: cheapest configuration per scene and error target, then the limits.
+  std::ostringstream md;
+  md << "# weft study (" << (quick ? "quick" : "full") << ")\n\n"
+     << "Error: oscillator = phase-space error / amplitude at T; rope and flag = largest position error of any "
+        "particle at T, m. Wall time per simulated second on " << maxThreads << " thread(s), median of "
+     << repetitions << ".\n\n## References\n\n| scene | T (s) | reference |\n|---|---|---|\n"
+     << referenceTable.str() << "\n## Cheapest run reaching each error\n\n"
+     << "| scene | error <= | integrator | precision | dt (s) | rk45 tol | error | wall s / simulated s |\n"
+     << "|---|---|---|---|---|---|---|---|\n";
+  for (const SceneDef& scene : scenes)
+    for (const double target : {1e-2, 1e-4, 1e-6, 1e-8}) {
+      const Row* best = nullptr;
+      for (const Row& r : rows)
+        if (r.scene == scene.name && r.threads == maxThreads && r.status == "ok" && r.error <= target &&
+            (!best || r.wallPerSimulated < best->wallPerSimulated))
+          best = &r;
+      md << "| " << scene.name << " | " << fmt(target) << " | ";
+      if (best)
+        md << best->integrator << " | " << best->precision << " | " << fmt(best->dt) << " | "
+           << (best->tolerance > 0 ? fmt(best->tolerance) : "-") << " | " << fmt(best->error, 3) << " | "
+           << fmt(best->wallPerSimulated, 3) << " |\n";
+      else
+        md << "none reached it | | | | | |\n";
+    }
+  md << "\n## Largest stable dt: estimate (kernel) vs measured (bisection, fixed steps)\n\n"
+     << "| scene | integrator | precision | estimate (s) | measured (s) | measured / estimate | omega_max dt |\n"
+     << "|---|---|---|---|---|---|---|\n"
+     << stableTable.str();
+  bool allSame = true;
+  for (const Row& r : rows) allSame = allSame && r.sameAsOneThread;
+  md << "\nEvery run's final state bitwise identical across thread counts: " << (allSame ? "yes" : "**no**") << "\n";
+  const fs::path mdPath = fs::path(o.out) / "study.md";
+  std::ofstream(mdPath) << md.str();
+  std::cout << md.str();
+  std::cout << "\nwrote " << csvPath.string() << " and " << mdPath.string() << " (" << rows.size() << " runs, "
+            << fmt(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 3) << " s)\n";
+
+  if (o.plot) {
+    const fs::path script = fs::path(WEFT_SOURCE_DIR) / "tools" / "plot_study.py";
+    const fs::path prefix = fs::path(o.out) / "study";
+    if (!fs::exists(script) || !fs::exists("/usr/bin/python3")) {
+      std::cerr << "weft study: plot skipped (" << script << " or /usr/bin/python3 missing)\n";
+    } else {
+      const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + csvPath.string() + "' '" +
+                              prefix.string() + "' --threads " + std::to_string(maxThreads);
+      std::cout.flush();
+      if (std::system(cmd.c_str()) != 0) {
+        std::cerr << "weft study: plotting failed (is python3-matplotlib installed? bash tools/setup.sh)\n";
+        return 1;
+      }
+    }
+  }
+  return allSame ? 0 : 1;
+}
+
+}  // namespace weftcli
