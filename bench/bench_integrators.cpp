@@ -2,7 +2,12 @@
 // each integrator, float and double, 1 and 2 threads, at 128^2 (and 256^2 for the
 // thread-scaling target). BM_Textbook_Rk4: the array-of-structs baseline, 1 thread,
 // double, same scene and dt. Each reports allocations per step (expected 0 for weft).
+// BM_SimulatedSecond_*: cost per simulated second at each method's largest stable step.
 #include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <map>
+#include <utility>
 
 #include "bench_common.hpp"
 #include "textbook.hpp"
@@ -63,6 +68,106 @@ WEFT_INTEGRATOR(BM_Integrator_Rk4_float, float, IntegratorKind::Rk4);
 WEFT_INTEGRATOR(BM_Integrator_Rk4_double, double, IntegratorKind::Rk4);
 WEFT_INTEGRATOR(BM_Integrator_Verlet_float, float, IntegratorKind::VelocityVerlet);
 WEFT_INTEGRATOR(BM_Integrator_Verlet_double, double, IntegratorKind::VelocityVerlet);
+WEFT_INTEGRATOR(BM_Integrator_Rk45_float, float, IntegratorKind::Rk45);
+WEFT_INTEGRATOR(BM_Integrator_Rk45_double, double, IntegratorKind::Rk45);
+WEFT_INTEGRATOR(BM_Integrator_Implicit_float, float, IntegratorKind::ImplicitEuler);
+WEFT_INTEGRATOR(BM_Integrator_Implicit_double, double, IntegratorKind::ImplicitEuler);
+
+// ---------------------------------------------------------------------------------------
+// BM_SimulatedSecond_*: what a simulated second costs on the 128^2 flag at each method's
+// largest stable step. The step is measured once per (precision, method) by bisection
+// (fixed steps; a probe is 400 steps from the initial state that the stability check does
+// not stop) and cached; the counter wall_s_per_sim_s = wall time / (steps x dt).
+// Adaptive rk45 runs frames of 1/60 s at its default tolerances (its substeps are its
+// own choice); implicit Euler runs 1/60 s steps (a real-time frame; it is stable far
+// beyond). Explicit Euler is left out: its stable step on this cloth is ~1e-6 s.
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+double largestStableFlagStep(weft::IntegratorKind kind, weft::Index size) {
+  static std::map<std::pair<int, weft::Index>, double> cache;
+  const auto key = std::make_pair(static_cast<int>(kind), size);
+  if (auto it = cache.find(key); it != cache.end()) return it->second;
+  const weft::ModelAndState<S> flag = weft::makeFlag<S>(size);
+  double estimate = weft::estimateStableTimeStep(flag.model, kind);
+  if (!(estimate > 0)) estimate = weft::estimateStableTimeStep(flag.model, weft::IntegratorKind::SymplecticEuler);
+  const auto stable = [&](double dt) {
+    weft::SimulationOptions options;
+    options.integrator = kind;
+    options.dt = dt;
+    options.threads = 2;
+    options.integration.adaptive = false;
+    weft::Simulation<S> sim(weft::ModelAndState<S>{flag.model, flag.state}, options);
+    return sim.run(400).ok();
+  };
+  double lo = estimate / 4, hi = estimate * 16;
+  while (!stable(lo)) lo /= 2;
+  for (int k = 0; k < 8; ++k) {
+    const double mid = std::sqrt(lo * hi);
+    (stable(mid) ? lo : hi) = mid;
+  }
+  return cache[key] = lo;
+}
+
+template <class S, weft::IntegratorKind Kind>
+void BM_SimulatedSecond(benchmark::State& st) {
+  const auto size = static_cast<weft::Index>(st.range(0));
+  weft::SimulationOptions options;
+  options.integrator = Kind;
+  options.threads = static_cast<int>(st.range(1));
+  if (Kind == weft::IntegratorKind::Rk45 || Kind == weft::IntegratorKind::ImplicitEuler)
+    options.dt = 1.0 / 60;
+  else
+    options.dt = largestStableFlagStep<S>(Kind, size);
+  weft::Simulation<S> sim(weft::makeFlag<S>(size), options);
+  const weft::State<S> initial = sim.state();
+  std::int64_t steps = 0;
+  const std::int64_t allocationsBefore = weftbench::allocationCount();
+  for (auto _ : st) {
+    if (!sim.step().ok()) {
+      st.SkipWithError(sim.status().message().c_str());
+      break;
+    }
+    if (++steps % 400 == 0) {  // stay within the probed span of the motion
+      st.PauseTiming();
+      sim.setState(initial);
+      st.ResumeTiming();
+    }
+  }
+  const weft::StepWork& work = sim.totalWork();
+  const double n = static_cast<double>(std::max<std::int64_t>(sim.stepCount(), 1));
+  st.counters["dt"] = options.dt;
+  const double estimate = weft::estimateStableTimeStep(sim.model(), Kind);
+  st.counters["dt_over_estimate"] = estimate > 0 && std::isfinite(estimate) ? options.dt / estimate : 0.0;
+  st.counters["force_evals_per_step"] = static_cast<double>(work.forceEvaluations) / n;
+  st.counters["cg_iterations_per_step"] = static_cast<double>(work.linearIterations) / n;
+  st.counters["allocs_per_step"] =
+      steps ? static_cast<double>(weftbench::allocationCount() - allocationsBefore) / static_cast<double>(steps) : 0;
+  st.counters["wall_s_per_sim_s"] =
+      benchmark::Counter(options.dt, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+void simulatedSecondArgs(benchmark::internal::Benchmark* b) {
+  for (int threads : {1, 2}) b->Args({128, threads});
+  b->ArgNames({"size", "threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
+}
+
+#define WEFT_SIMULATED_SECOND(NAME, S, KIND)                           \
+  void NAME(benchmark::State& st) { BM_SimulatedSecond<S, KIND>(st); } \
+  BENCHMARK(NAME)->Apply(simulatedSecondArgs)
+
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Symplectic_float, float, IntegratorKind::SymplecticEuler);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Symplectic_double, double, IntegratorKind::SymplecticEuler);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Midpoint_float, float, IntegratorKind::Midpoint);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Midpoint_double, double, IntegratorKind::Midpoint);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk4_float, float, IntegratorKind::Rk4);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk4_double, double, IntegratorKind::Rk4);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Verlet_float, float, IntegratorKind::VelocityVerlet);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Verlet_double, double, IntegratorKind::VelocityVerlet);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk45_float, float, IntegratorKind::Rk45);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk45_double, double, IntegratorKind::Rk45);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Implicit_float, float, IntegratorKind::ImplicitEuler);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Implicit_double, double, IntegratorKind::ImplicitEuler);
 
 void BM_Textbook_Rk4_double(benchmark::State& st) {
   const auto size = static_cast<weft::Index>(st.range(0));

@@ -6,7 +6,10 @@
 #include <array>
 #include <cctype>
 #include <cstdio>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 #include <string>
 
 #include "support/test_support.hpp"
@@ -118,6 +121,33 @@ TEST(Cli, WorkPerStepReportsTheAdaptiveAndImplicitCounters) {
   EXPECT_EQ(i["work_per_step"]["force_evaluations"], 1.0);
   EXPECT_GT(i["work_per_step"]["linear_iterations"].get<double>(), 0.0);
   EXPECT_LE(i["work_per_step"]["max_linear_residual"].get<double>(), 1e-8);
+}
+
+TEST(Cli, StudyWritesItsTablesWithEveryIntegratorAndAgreesAcrossThreads) {
+  const std::string dir = ::testing::TempDir() + "weft_study_test";
+  const CliRun r = weft("study --quick --scene oscillator --threads 1 2 --no-plot --out " + dir, false);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  std::ifstream csv(dir + "/study.csv");
+  ASSERT_TRUE(csv.good());
+  std::string header, line;
+  std::getline(csv, header);
+  for (const char* column : {"scene", "integrator", "precision", "threads", "dt", "tolerance", "error", "energy_drift",
+                             "wall_per_simulated_second", "stable_dt_measured", "stable_dt_estimate", "status",
+                             "bitwise_same_as_first_thread_count"})
+    EXPECT_NE(header.find(column), std::string::npos) << column;
+  std::set<std::string> integrators;
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    integrators.insert(line.substr(line.find(',') + 1, line.find(',', line.find(',') + 1) - line.find(',') - 1));
+    EXPECT_EQ(line.back(), '1') << "1 and 2 threads differ: " << line;
+  }
+  EXPECT_EQ(integrators.size(), std::size(kAllIntegrators)) << rows << " rows";
+  std::ifstream md(dir + "/study.md");
+  std::stringstream text;
+  text << md.rdbuf();
+  EXPECT_NE(text.str().find("Cheapest run reaching each error"), std::string::npos);
+  EXPECT_NE(text.str().find("bitwise identical across thread counts: yes"), std::string::npos);
 }
 
 TEST(Cli, StateHashMatchesTheLibrary) {

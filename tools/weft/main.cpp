@@ -79,13 +79,16 @@ int main(int argc, char** argv) {
 
   weftcli::StudyOptions study;
   CLI::App* studyCmd = app.add_subcommand(
-      "study", "Error, stability limit and wall time of every integrator x dt x precision x threads (CSV, Markdown, plot)");
+      "study",
+      "Error, stability limit and wall time of every integrator x dt x precision x threads (CSV, Markdown, plot)");
   studyCmd->add_flag("--quick", study.quick, "Small scenes and a coarse sweep (under a minute)");
   studyCmd->add_option("--out", study.out, "Output directory (default: study)");
   studyCmd->add_option("--threads", study.threads, "Thread counts to time (default: 1 2)")
       ->check(CLI::Range(1, 1024))
       ->expected(1, 16);
   studyCmd->add_flag("!--no-plot", study.plot, "Do not draw the plot");
+  studyCmd->add_option("--scene", study.scenes, "Only these scenes: oscillator, rope, flag (default: all)")
+      ->check(CLI::IsMember({"oscillator", "rope", "flag"}));
 
   try {
     app.parse(argc, argv);

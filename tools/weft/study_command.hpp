@@ -9,10 +9,11 @@
 namespace weftcli {
 
 struct StudyOptions {
-  bool quick = false;                  // small scenes, short runs, coarse bisection (< 1 min)
-  std::string out = "study";           // output directory: study.csv, study.md, study.png/.svg
-  std::vector<int> threads = {1, 2};   // thread counts to time
-  bool plot = true;                    // run tools/plot_study.py through /usr/bin/python3
+  bool quick = false;                 // small scenes, short runs, coarse bisection (< 1 min)
+  std::string out = "study";          // output directory: study.csv, study.md, study.png/.svg
+  std::vector<int> threads = {1, 2};  // thread counts to time
+  bool plot = true;                   // run tools/plot_study.py through /usr/bin/python3
+  std::vector<std::string> scenes;    // oscillator, rope, flag (empty: all three)
 };
 
 /// Runs the study and writes its files; returns the process exit code (0 on success).

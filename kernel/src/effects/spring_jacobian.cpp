@@ -20,9 +20,9 @@ S* col(Vec3Array<S>& m, int c) {
 template <class S>
 [[gnu::noinline]] void linearizeSprings(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
                                         const S* __restrict x, const S* __restrict y, const S* __restrict z,
-                                        const S* __restrict rest, const S* __restrict ks, const S* __restrict kd,
-                                        S h, S* __restrict dx, S* __restrict dy, S* __restrict dz,
-                                        S* __restrict alpha, S* __restrict beta, S* __restrict gamma) {
+                                        const S* __restrict rest, const S* __restrict ks, const S* __restrict kd, S h,
+                                        S* __restrict dx, S* __restrict dy, S* __restrict dz, S* __restrict alpha,
+                                        S* __restrict beta, S* __restrict gamma) {
   const S h2 = h * h;
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
@@ -49,9 +49,8 @@ template <class S, bool kDamping>
 [[gnu::noinline]] void springProducts(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
                                       const S* __restrict px, const S* __restrict py, const S* __restrict pz,
                                       const S* __restrict dx, const S* __restrict dy, const S* __restrict dz,
-                                      const S* __restrict alpha, const S* __restrict beta,
-                                      const S* __restrict gamma, S* __restrict gx, S* __restrict gy,
-                                      S* __restrict gz) {
+                                      const S* __restrict alpha, const S* __restrict beta, const S* __restrict gamma,
+                                      S* __restrict gx, S* __restrict gy, S* __restrict gz) {
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
     const S ux = px[i] - px[j], uy = py[i] - py[j], uz = pz[i] - pz[j];
@@ -169,8 +168,7 @@ void SpringJacobian<S>::systemProduct(const Vec3Array<S>& p, const AccelerationS
 }
 
 template <class S>
-void SpringJacobian<S>::stiffnessProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink,
-                                         const Executor& exec) {
+void SpringJacobian<S>::stiffnessProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
   product<false>(p, sink, exec);
 }
 

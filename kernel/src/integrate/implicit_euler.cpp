@@ -189,14 +189,14 @@ class ImplicitEuler final : public Integrator<S> {
 
   IntegratorOptions options_;
   SpringJacobian<S> jacobian_;
-  ScalarArray<S> free_;            // (n) 1 for free particles, 0 for pinned (the filter)
-  Vec3Array<S> b_;                 // (n x 3) right-hand side, kg m/s
-  Vec3Array<S> dv_;                // (n x 3) velocity change (kept as the next warm start), m/s
-  Vec3Array<S> r_, p_, q_;         // (n x 3) CG residual, direction, A p
-  Vec3Array<S> inverseDiagonal_;   // (n x 3) Jacobi preconditioner (0 on pinned particles)
-  std::vector<double> partialA_;   // per block of kBlock particles
+  ScalarArray<S> free_;           // (n) 1 for free particles, 0 for pinned (the filter)
+  Vec3Array<S> b_;                // (n x 3) right-hand side, kg m/s
+  Vec3Array<S> dv_;               // (n x 3) velocity change (kept as the next warm start), m/s
+  Vec3Array<S> r_, p_, q_;        // (n x 3) CG residual, direction, A p
+  Vec3Array<S> inverseDiagonal_;  // (n x 3) Jacobi preconditioner (0 on pinned particles)
+  std::vector<double> partialA_;  // per block of kBlock particles
   std::vector<double> partialB_;
-  bool warm_ = false;              // dv_ holds the previous step's solution
+  bool warm_ = false;  // dv_ holds the previous step's solution
 };
 
 }  // namespace

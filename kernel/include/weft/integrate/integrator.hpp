@@ -61,10 +61,10 @@ double integratorStabilityLimit(IntegratorKind kind);
 /// True for the methods whose stability limit is finite (all explicit ones).
 inline bool integratorIsExplicit(IntegratorKind kind) { return kind != IntegratorKind::ImplicitEuler; }
 /// Every integrator, in the order above (for parameterised tests and sweeps).
-inline constexpr IntegratorKind kAllIntegrators[] = {
-    IntegratorKind::ExplicitEuler,  IntegratorKind::SymplecticEuler, IntegratorKind::Midpoint,
-    IntegratorKind::Rk4,            IntegratorKind::VelocityVerlet,  IntegratorKind::Rk45,
-    IntegratorKind::ImplicitEuler};
+inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEuler,  IntegratorKind::SymplecticEuler,
+                                                     IntegratorKind::Midpoint,       IntegratorKind::Rk4,
+                                                     IntegratorKind::VelocityVerlet, IntegratorKind::Rk45,
+                                                     IntegratorKind::ImplicitEuler};
 
 /// Parameters of the adaptive and the implicit methods (the others have none). Checked by
 /// validateIntegratorOptions; the Simulation checks them at construction.
@@ -84,15 +84,15 @@ void validateIntegratorOptions(const IntegratorOptions& options);
 
 /// The work one step did, reported by every integrator the same way.
 struct StepWork {
-  Index forceEvaluations = 0;  // calls of ForceField::accelerations
-  Index substeps = 0;          // accepted (sub)steps: 1 for fixed-step methods
-  Index rejectedSubsteps = 0;  // Rk45: trial substeps rejected by the error control
-  Index linearIterations = 0;  // ImplicitEuler: CG iterations (one Jacobian product each)
-  Index linearUnconverged = 0; // ImplicitEuler: solves that stopped at maxLinearIterations
-  double linearResidual = 0;   // ImplicitEuler: final |r| / |b| of the solve (largest if summed)
-  double errorEstimate = 0;    // Rk45: largest scaled error of an accepted substep (<= 1)
-  bool failed = false;         // Rk45: error control gave up (minSubstep or maxSubsteps); the
-                               // result must not be used
+  Index forceEvaluations = 0;   // calls of ForceField::accelerations
+  Index substeps = 0;           // accepted (sub)steps: 1 for fixed-step methods
+  Index rejectedSubsteps = 0;   // Rk45: trial substeps rejected by the error control
+  Index linearIterations = 0;   // ImplicitEuler: CG iterations (one Jacobian product each)
+  Index linearUnconverged = 0;  // ImplicitEuler: solves that stopped at maxLinearIterations
+  double linearResidual = 0;    // ImplicitEuler: final |r| / |b| of the solve (largest if summed)
+  double errorEstimate = 0;     // Rk45: largest scaled error of an accepted substep (<= 1)
+  bool failed = false;          // Rk45: error control gave up (minSubstep or maxSubsteps); the
+                                // result must not be used
   /// Adds another step's work (counts add, residual and error take the maximum).
   StepWork& operator+=(const StepWork& o) {
     forceEvaluations += o.forceEvaluations;
