@@ -220,5 +220,24 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
     }
 }
 
+TEST(ClockAllocation, AdvancingAndInterpolatingDoNotAllocate) {
+  SimulationOptions options;
+  options.threads = 2;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, kFlagSize);
+  Simulation<double> sim(makeFlag<double>(kFlagSize), options);
+  FixedStepClock<double> clock(sim);
+  Vec3Array<double> shown(sim.model().particleCount(), 3);
+  ASSERT_TRUE(clock.advance(0.002).ok());  // warm-up: TBB workers join the arena
+  const Counts c = countDuring([&] {
+    for (int k = 0; k < 30; ++k) {
+      ASSERT_TRUE(clock.advance(k % 3 == 0 ? 0.0007 : 0.0016).ok());  // a few steps per frame
+      clock.interpolatedPositions(shown);
+    }
+  });
+  EXPECT_GT(sim.stepCount(), 50);
+  EXPECT_EQ(c.news, 0);
+  EXPECT_EQ(c.mallocs, 0);
+}
+
 }  // namespace
 }  // namespace weft::test

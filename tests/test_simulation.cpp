@@ -479,3 +479,111 @@ INSTANTIATE_TEST_SUITE_P(Flag, TextbookAgreement,
 
 }  // namespace
 }  // namespace weft::test
+
+// ---------------------------------------------------------------------------------------
+// Fixed-step clock
+// ---------------------------------------------------------------------------------------
+
+namespace weft::test {
+namespace {
+
+/// Drives the rope with the given frame times until the frame time reaches `total`
+/// (the last frame trimmed to land on it); returns the state's hash and step count.
+template <class S, class NextFrame>
+std::pair<std::uint64_t, Index> driveRope(double total, NextFrame nextFrame) {
+  SimulationOptions options;
+  options.integrator = IntegratorKind::Rk4;
+  options.dt = 1e-3;
+  options.threads = 2;
+  Simulation<S> sim(makeRope<S>(32), options);
+  FixedStepClock<S> clock(sim);
+  while (clock.frameTime() < total) {
+    const double frame = std::min(nextFrame(), total - clock.frameTime());
+    EXPECT_TRUE(clock.advance(frame).ok());
+    EXPECT_GE(clock.alpha(), 0.0);
+    EXPECT_LT(clock.alpha(), 1.0);
+  }
+  EXPECT_EQ(clock.stepsTaken(), sim.stepCount());
+  EXPECT_EQ(clock.droppedTime(), 0.0);
+  return {stateHash(sim.state()), sim.stepCount()};
+}
+
+TYPED_TEST(SimulationTest, FixedStepClockGivesTheSameStateForAnyFrameRate) {
+  using S = TypeParam;
+  // 1 s + half a step: the step count (1000) is then far from a rounding boundary.
+  const double total = 1.0 + 0.5e-3;
+  const auto at30 = driveRope<S>(total, [] { return 1.0 / 30; });
+  const auto at144 = driveRope<S>(total, [] { return 1.0 / 144; });
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(0.0, 0.05);  // 0 to 50 ms (< 64 steps), tiny frames too
+  const auto jittery = driveRope<S>(total, [&] { return jitter(rng); });
+  EXPECT_EQ(at30.second, 1000);
+  EXPECT_EQ(at144.second, 1000);
+  EXPECT_EQ(jittery.second, 1000);
+  EXPECT_EQ(at30.first, at144.first);
+  EXPECT_EQ(at30.first, jittery.first);
+  // And it is the state of 1000 plain steps.
+  SimulationOptions options;
+  options.integrator = IntegratorKind::Rk4;
+  options.dt = 1e-3;
+  options.threads = 1;
+  Simulation<S> plain(makeRope<S>(32), options);
+  ASSERT_TRUE(plain.run(1000).ok());
+  EXPECT_EQ(stateHash(plain.state()), at30.first);
+}
+
+TYPED_TEST(SimulationTest, FixedStepClockInterpolatesBetweenTheLastTwoSteps) {
+  using S = TypeParam;
+  SimulationOptions options;
+  options.dt = 1e-3;
+  options.threads = 1;
+  Simulation<S> sim(makeRope<S>(16), options);
+  FixedStepClock<S> clock(sim);
+  Vec3Array<S> shown;
+  clock.interpolatedPositions(shown);
+  EXPECT_TRUE(shown == sim.state().x) << "before any step: the state itself";
+  ASSERT_TRUE(clock.advance(0.0035).ok());  // 3 steps, 0.5 step carried
+  EXPECT_EQ(sim.stepCount(), 3);
+  EXPECT_NEAR(clock.alpha(), 0.5, 1e-9);
+  const State<S> after3 = sim.state();
+  ASSERT_TRUE(clock.advance(0.0).ok());
+  clock.interpolatedPositions(shown);
+  // Halfway between step 2 and step 3.
+  SimulationOptions again = options;
+  Simulation<S> replay(makeRope<S>(16), again);
+  ASSERT_TRUE(replay.run(2).ok());
+  const Vec3Array<S> expected = S(0.5) * replay.state().x + S(0.5) * after3.x;
+  EXPECT_LT((shown - expected).cwiseAbs().maxCoeff(), 4 * eps<S>());
+  ASSERT_TRUE(clock.advance(0.0005).ok());  // the carried half step completes one more
+  EXPECT_EQ(sim.stepCount(), 4);
+  EXPECT_NEAR(clock.alpha(), 0.0, 1e-9);
+}
+
+TYPED_TEST(SimulationTest, FixedStepClockDropsTimeInsteadOfSpiralling) {
+  using S = TypeParam;
+  SimulationOptions options;
+  options.dt = 1e-3;
+  options.threads = 1;
+  Simulation<S> sim(makeRope<S>(16), options);
+  FixedStepClock<S> clock(sim, 8);
+  ASSERT_TRUE(clock.advance(1.0).ok());  // a 1 s hitch: 1000 steps due, 8 taken
+  EXPECT_EQ(sim.stepCount(), 8);
+  // Dropped + simulated + carried = the frame (1 s / 1e-3 s is 999.99... in binary: 999 due).
+  EXPECT_NEAR(clock.droppedTime() + 8e-3 + clock.alpha() * 1e-3, 1.0, 1e-9);
+  EXPECT_GT(clock.droppedTime(), 0.99);
+  ASSERT_TRUE(clock.advance(0.002).ok());  // back to normal: 2 steps
+  EXPECT_EQ(sim.stepCount(), 10);
+  try {
+    clock.advance(-0.1);
+    FAIL() << "negative frame time accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("frameTime"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("-0.1"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(clock.advance(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  EXPECT_THROW(FixedStepClock<S>(sim, 0), std::invalid_argument);
+  EXPECT_EQ(sim.stepCount(), 10);
+}
+
+}  // namespace
+}  // namespace weft::test

@@ -7,4 +7,5 @@
 #include "weft/model/builder.hpp"
 #include "weft/model/builders.hpp"
 #include "weft/scene/builtin_scenes.hpp"
+#include "weft/scene/fixed_step_clock.hpp"
 #include "weft/scene/simulation.hpp"
