@@ -6,6 +6,7 @@
 #include <array>
 #include <cctype>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -196,6 +197,50 @@ TEST(Cli, StabilityFailureExitsWithThreeAndNamesTheParticle) {
   EXPECT_NE(j["status_message"].get<std::string>().find("particle"), std::string::npos) << j["status_message"];
 }
 
+TEST(Cli, FramesOutWritesOneObjPerFrame) {
+  const std::string dir = ::testing::TempDir() + "weft_cli_frames_obj";
+  std::filesystem::remove_all(dir);
+  const nlohmann::json j = runJson("run flag --size 8 --steps 10 --every 5 --out " + dir + " --format obj");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["frames_written"], 3);
+  EXPECT_EQ(j["output"], dir);
+  std::set<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) files.insert(entry.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"frame_000000.obj", "frame_000001.obj", "frame_000002.obj"}));
+  std::ifstream last(dir + "/frame_000002.obj");
+  std::string line;
+  int vertices = 0, faces = 0;
+  while (std::getline(last, line)) {
+    vertices += line.rfind("v ", 0) == 0;
+    faces += line.rfind("f ", 0) == 0;
+  }
+  EXPECT_EQ(vertices, 64);
+  EXPECT_EQ(faces, 2 * 7 * 7);
+}
+
+TEST(Cli, FramesOutCacheHoldsEveryKthStateOfTheLibraryRun) {
+  const std::string dir = ::testing::TempDir() + "weft_cli_frames_cache";
+  std::filesystem::remove_all(dir);
+  const nlohmann::json j = runJson("run flag --size 8 --steps 10 --every 5 --out " + dir + " --format cache");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["frames_written"], 3);
+  FrameCacheReader<double> reader(dir + "/frames.wcache");
+  ASSERT_EQ(reader.frameCount(), 3);
+  ASSERT_EQ(reader.particleCount(), 64);
+  State<double> frame;
+  reader.read(2, frame);
+  const double dt = defaultTimeStep(BuiltinScene::Flag, 8);
+  EXPECT_NEAR(frame.time, 10 * dt, 1e-15);
+  // The same run in this process: the last frame is its final state, bit for bit.
+  SimulationOptions options;
+  options.dt = dt;
+  options.threads = 1;
+  Simulation<double> sim(makeFlag<double>(8), options);
+  ASSERT_TRUE(sim.run(10).ok());
+  EXPECT_EQ(frame.time, sim.state().time);
+  EXPECT_TRUE(frame.x == sim.state().x) << "the cached frame differs from the library's state";
+}
+
 struct BadOption {
   const char* args;
   const char* option;  // what the message must name
@@ -227,7 +272,10 @@ INSTANTIATE_TEST_SUITE_P(
                       BadOption{"flag --integrator rk45 --rtol nan", "--rtol", "nan"},
                       BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
                       BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
-                      BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"}),
+                      BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
+                      BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},
+                      BadOption{"flag --out weft_bad_out --every 0", "--every", "0"},
+                      BadOption{"flag --every 2", "--every", "--out"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -75,6 +76,13 @@ int main(int argc, char** argv) {
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")
       ->check(CLI::IsMember({"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
+  CLI::Option* out = cmd->add_option("--out", run.out, "Write frames into this directory (created)");
+  cmd->add_option("--format", run.format, "Frame format: obj | ply | cache (one frames.wcache); default obj")
+      ->check(CLI::IsMember({"obj", "ply", "cache"}))
+      ->needs(out);
+  cmd->add_option("--every", run.every, "Write a frame every K steps (K >= 1, default 1); frame 0 is the initial state")
+      ->check(CLI::Range(std::int64_t(1), std::numeric_limits<std::int64_t>::max()))
+      ->needs(out);
   cmd->add_flag("--json", run.json, "Print exactly one JSON object instead of the summary");
 
   weftcli::StudyOptions study;

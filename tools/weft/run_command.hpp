@@ -20,10 +20,15 @@ struct RunOptions {
   int threads = 0;
   std::string strategy = "auto";
   bool json = false;
+  std::string out;             // frames directory; empty: write no frames
+  std::string format = "obj";  // obj | ply | cache
+  std::int64_t every = 1;      // write a frame every this many steps (>= 1)
 };
 
 /// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
-/// 0 when every step succeeded, 3 when the stability check stopped the run.
+/// 0 when every step succeeded, 3 when the stability check stopped the run. With `out`,
+/// frames go to that directory (created): frame 0 is the initial state, then one frame
+/// after every `every` steps (frame_000000.obj / .ply, or one frames.wcache).
 int runScene(const RunOptions& options);
 
 }  // namespace weftcli

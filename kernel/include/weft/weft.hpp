@@ -4,6 +4,7 @@
 #include "weft/core/parallel.hpp"
 #include "weft/core/state.hpp"
 #include "weft/effects/spring_jacobian.hpp"
+#include "weft/io/frames.hpp"
 #include "weft/model/builder.hpp"
 #include "weft/model/builders.hpp"
 #include "weft/scene/builtin_scenes.hpp"
