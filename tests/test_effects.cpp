@@ -662,3 +662,94 @@ TEST(SpringJacobian, CompressedSpringsAddNoNegativeStiffnessAndTheSystemIsPositi
 
 }  // namespace
 }  // namespace weft::test
+
+// ---------------------------------------------------------------------------------------
+// Viscous drag (ParticleEffects)
+// ---------------------------------------------------------------------------------------
+
+namespace weft::test {
+namespace {
+
+TEST(Drag, IsExactlyMinusCWVOnEveryStrategyAndZeroOnPinnedParticles) {
+  ModelAndState<double> flag = makeFlag<double>(12);
+  perturbFree(flag.model, flag.state, 0.01, 0.5, 77);
+  const Index n = flag.model.particleCount();
+  const double c = 0.003;
+  const Executor exec(2);
+  for (const ForceStrategy strategy : kGridStrategies) {
+    SCOPED_TRACE(forceStrategyName(strategy));
+    ForceField<double> plain(flag.model, strategy, {0, -9.81, 0});
+    ParticleEffects effects;
+    effects.drag = c;
+    ForceField<double> dragged(flag.model, strategy, {0, -9.81, 0}, effects);
+    Vec3Array<double> a0(n, 3), a1(n, 3);
+    plain.accelerations(flag.state.x, flag.state.v, a0, exec);
+    dragged.accelerations(flag.state.x, flag.state.v, a1, exec);
+    for (Index i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) {
+        const double expected = a0(i, k) - (c * flag.model.inverseMass()[i]) * flag.state.v(i, k);
+        ASSERT_EQ(a1(i, k), expected) << "particle " << i << " axis " << k;
+      }
+  }
+}
+
+TEST(Drag, AFallingParticleApproachesItsTerminalVelocity) {
+  // m v' = m g - c v: v(t) = (m g / c)(1 - exp(-c t / m)).
+  const double m = 0.02, c = 0.05, g = 9.81;
+  ModelBuilder<double> b;
+  b.addParticle({0, 0, 0}, m);
+  SimulationOptions options;
+  options.integrator = IntegratorKind::Rk4;
+  options.dt = 1e-3;
+  options.threads = 1;
+  options.effects.drag = c;
+  Simulation<double> sim(b.build(), options);
+  ASSERT_TRUE(sim.run(2000).ok());
+  const double t = 2.0, exact = -(m * g / c) * (1 - std::exp(-c * t / m));
+  EXPECT_NEAR(sim.state().v(0, 1), exact, 1e-10);
+  EXPECT_NEAR(sim.state().v(0, 1), -m * g / c, 0.01 * m * g / c);  // nearly terminal after 5 time constants
+}
+
+TEST(Drag, ImplicitEulerTakesHeavyDragAtStepsWhereExplicitMethodsFail) {
+  // c / m = 1000 1/s at dt = 0.01 s: explicit Euler's factor |1 - h c / m| = 9.
+  const double m = 0.01, c = 10;
+  ModelBuilder<double> b;
+  b.addParticle({0, 0, 0}, m);
+  b.addParticle({0.1, 0, 0}, m);
+  b.addSpring(0, 1, {1.0, 0.0});
+  b.pin(0);
+  const ModelAndState<double> scene = b.build();
+  for (const IntegratorKind kind : {IntegratorKind::ExplicitEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler}) {
+    SCOPED_TRACE(integratorName(kind));
+    SimulationOptions options;
+    options.integrator = kind;
+    options.dt = 0.01;
+    options.threads = 1;
+    options.effects.drag = c;
+    Simulation<double> sim(ModelAndState<double>{scene.model, scene.state}, options);
+    const StepStatus status = sim.run(500);
+    if (kind == IntegratorKind::ImplicitEuler) {
+      ASSERT_TRUE(status.ok()) << status.message();
+      // Terminal fall speed m g / c = 0.00981 m/s (the soft spring barely matters at 5 s).
+      EXPECT_NEAR(sim.state().v(1, 1), -m * 9.81 / c, 2e-3);
+    } else {
+      EXPECT_FALSE(status.ok()) << "an explicit method at h c / m = 10 should be flagged";
+    }
+  }
+}
+
+TEST(Drag, BadCoefficientsAreRejectedByName) {
+  for (const double bad : {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    SimulationOptions options;
+    options.effects.drag = bad;
+    try {
+      Simulation<double> sim(makeFlag<double>(4), options);
+      ADD_FAILURE() << "drag " << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("effects.drag"), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace weft::test

@@ -74,6 +74,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+  cmd->add_option("--drag", run.drag, "Viscous drag on every particle, N s/m (>= 0; 0 = none, free)")
+      ->check(finiteNonNegative);
   cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")
       ->check(CLI::IsMember({"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
   CLI::Option* out = cmd->add_option("--out", run.out, "Write frames into this directory (created)");

@@ -114,6 +114,7 @@ int run(const RunOptions& o) {
   options.threads = o.threads;
   options.forceStrategy = weft::parseForceStrategy(o.strategy);
   options.integration = o.integration;
+  options.effects.drag = o.drag;
   options.integration.adaptive = !o.fixedStep;
   weft::Simulation<S> sim(weft::makeBuiltinScene<S>(scene, size), options);
 

@@ -16,6 +16,7 @@ struct RunOptions {
   std::string integrator = "rk4";
   weft::IntegratorOptions integration;  // rk45 tolerances, implicit CG settings
   bool fixedStep = false;               // rk45 without error control
+  double drag = 0;                      // viscous drag, N s/m (0: absent)
   std::string precision = "double";
   int threads = 0;
   std::string strategy = "auto";

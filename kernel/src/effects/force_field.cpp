@@ -1,6 +1,9 @@
 #include "weft/effects/force_field.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
 #include <cstdint>
 #include <stdexcept>
 
@@ -136,12 +139,17 @@ S* col(Vec3Array<S>& m, int c) {
 }  // namespace
 
 template <class S>
-ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity)
+ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity,
+                          const ParticleEffects& effects)
     : model_(&model),
       strategy_(strategy),
       gx_(static_cast<S>(gravity.x)),
       gy_(static_cast<S>(gravity.y)),
-      gz_(static_cast<S>(gravity.z)) {
+      gz_(static_cast<S>(gravity.z)),
+      effects_(effects),
+      drag_(static_cast<S>(effects.drag)) {
+  if (!(std::isfinite(effects.drag) && effects.drag >= 0 && effects.drag <= std::numeric_limits<S>::max()))
+    throw std::invalid_argument("effects.drag must be finite and >= 0 (N s/m), got " + std::to_string(effects.drag));
   const Index n = model.particleCount();
   const Index m = model.springCount();
   const Springs<S>& sp = model.springs();
@@ -304,6 +312,7 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, c
       ay[i - b] = wi * fy + (free ? gy : S(0));
       az[i - b] = wi * fz + (free ? gz : S(0));
     }
+    if (effects_.any()) applyEffects(b, e - b, v, ax, ay, az);
     sink(b, e - b, ax, ay, az);
   });
 }
@@ -344,6 +353,7 @@ void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v,
     alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
     finishAccelerations(e - b, w + b, col(force_, 0) + b, col(force_, 1) + b, col(force_, 2) + b, gx_, gy_, gz_, ax, ay,
                         az);
+    if (effects_.any()) applyEffects(b, e - b, v, ax, ay, az);
     sink(b, e - b, ax, ay, az);
   });
 }
@@ -405,9 +415,32 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
                     window + (k * 3 + 1) * windowSize_ + p, window + (k * 3 + 2) * windowSize_ + p, tx, ty, tz);
         finishAccelerations(len, w + j0, tx, ty, tz, gx_, gy_, gz_, ax, ay, az);
       }
+      if (effects_.any()) applyEffects(j0, len, v, ax, ay, az);
       sink(j0, len, ax, ay, az);
     }
   });
+}
+
+namespace {
+// a_i -= c w_i v_i over [0, count) (zero for pinned particles, w = 0). Pointers offset to
+// the first particle.
+template <class S>
+[[gnu::noinline]] void addDrag(Index count, S c, const S* __restrict w, const S* __restrict vx, const S* __restrict vy,
+                               const S* __restrict vz, S* __restrict ax, S* __restrict ay, S* __restrict az) {
+  for (Index i = 0; i < count; ++i) {
+    const S k = c * w[i];
+    ax[i] -= k * vx[i];
+    ay[i] -= k * vy[i];
+    az[i] -= k * vz[i];
+  }
+}
+}  // namespace
+
+template <class S>
+void ForceField<S>::applyEffects(Index begin, Index count, const Vec3Array<S>& v, S* ax, S* ay, S* az) const {
+  if (effects_.drag != 0)
+    addDrag(count, drag_, model_->inverseMass().data() + begin, col(v, 0) + begin, col(v, 1) + begin,
+            col(v, 2) + begin, ax, ay, az);
 }
 
 template class ForceField<float>;

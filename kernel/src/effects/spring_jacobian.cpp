@@ -96,7 +96,8 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
 }
 
 template <class S>
-void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& exec) {
+void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& exec, S drag) {
+  dragTerm_ = h * drag;
   const Springs<S>& sp = model_->springs();
   exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
     linearizeSprings(b, e, sp.a.data(), sp.b.data(), col(x, 0), col(x, 1), col(x, 2), sp.restLength.data(),
@@ -114,7 +115,7 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
         const S along = beta_[s] + gamma_[s];
         for (int c = 0; c < 3; ++c) sum[c] += alpha_[s] + along * direction_(s, c) * direction_(s, c);
       }
-      for (int c = 0; c < 3; ++c) diagonal_(i, c) = model_->mass()[i] + sum[c];
+      for (int c = 0; c < 3; ++c) diagonal_(i, c) = model_->mass()[i] + dragTerm_ + sum[c];
     }
   });
 }
@@ -139,6 +140,7 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
     const S* __restrict Px = col(p, 0);
     const S* __restrict Py = col(p, 1);
     const S* __restrict Pz = col(p, 2);
+    const S dragTerm = dragTerm_;
     alignas(64) S yx[kBlock], yy[kBlock], yz[kBlock];
     for (Index i = b; i < e; ++i) {
       S sx = 0, sy = 0, sz = 0;
@@ -150,9 +152,10 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
         sz += sign * Gz[s];
       }
       if constexpr (kSystem) {
-        sx += mass[i] * Px[i];
-        sy += mass[i] * Py[i];
-        sz += mass[i] * Pz[i];
+        const S mi = mass[i] + dragTerm;
+        sx += mi * Px[i];
+        sy += mi * Py[i];
+        sz += mi * Pz[i];
       }
       yx[i - b] = sx;
       yy[i - b] = sy;

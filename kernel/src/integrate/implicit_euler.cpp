@@ -67,7 +67,7 @@ class ImplicitEuler final : public Integrator<S> {
     };
     forces.accelerations(x0, v0, makeSink<S>(rhsForce), exec);
     ++work.forceEvaluations;
-    jacobian_.linearize(x0, h, exec);
+    jacobian_.linearize(x0, h, exec, static_cast<S>(forces.effects().drag));
     // b -= (-h^2 df/dx) v0; then |b|^2 per block. Jacobi: 1 / diag(A) on free particles.
     auto rhsStiffness = [&](Index b, Index m, const S* yx, const S* yy, const S* yz) {
       const auto f = free_.segment(b, m).array();

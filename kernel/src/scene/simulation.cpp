@@ -18,6 +18,9 @@ const SimulationOptions& validated(const SimulationOptions& o) {
                                 std::to_string(o.threads));
   if (!(std::isfinite(o.gravity.x) && std::isfinite(o.gravity.y) && std::isfinite(o.gravity.z)))
     throw std::invalid_argument("SimulationOptions.gravity must be finite");
+  if (!(std::isfinite(o.effects.drag) && o.effects.drag >= 0))
+    throw std::invalid_argument("SimulationOptions.effects.drag must be finite and >= 0 (N s/m), got " +
+                                std::to_string(o.effects.drag));
   if (std::isnan(o.stability.maxStretch))
     throw std::invalid_argument("SimulationOptions.stability.maxStretch must not be NaN");
   return o;
@@ -40,7 +43,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     : model_(requireModel(std::move(model))),
       options_(validated(options)),
       executor_(makeExecutor(options_)),
-      forces_(*model_, options_.forceStrategy, options_.gravity),
+      forces_(*model_, options_.forceStrategy, options_.gravity, options_.effects),
       integrator_(makeIntegrator<S>(options_.integrator, *model_, options_.integration)),
       stability_(*model_, options_.stability),
       nextX_(model_->particleCount(), 3),

@@ -69,12 +69,22 @@ AccelerationSink<S> makeSink(F& f) {
           }};
 }
 
+/// Per-particle effects beyond springs and gravity. Each is absent at its default value,
+/// and an absent effect costs nothing: the force pass tests once per block of
+/// kSinkBlock particles whether any is active, never per particle.
+struct ParticleEffects {
+  double drag = 0;  // viscous drag c (N s/m, finite, >= 0): f = -c v on every free particle
+  bool any() const { return drag != 0; }
+};
+
 template <class S>
 class ForceField {
  public:
   /// `model` must outlive the ForceField. gravity in m/s^2. Throws std::invalid_argument
-  /// if GridStencil is requested for a model without a grid layout.
-  ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity);
+  /// if GridStencil is requested for a model without a grid layout, or for bad effects
+  /// (naming the field and the value).
+  ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity, const ParticleEffects& effects = {});
+  const ParticleEffects& effects() const { return effects_; }
 
   /// Accelerations at positions x and velocities v (n x 3), handed to `sink` in blocks.
   void accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
@@ -105,9 +115,14 @@ class ForceField {
   void stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                      const Executor& exec);
 
+  /// Adds the active per-particle effects to a finished block of accelerations.
+  void applyEffects(Index begin, Index count, const Vec3Array<S>& v, S* ax, S* ay, S* az) const;
+
   const Model<S>* model_;
   ForceStrategy strategy_;
   S gx_, gy_, gz_;
+  ParticleEffects effects_;
+  S drag_ = 0;  // c, N s/m
 
   // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
   // meaning the particle is endpoint b and takes -f).

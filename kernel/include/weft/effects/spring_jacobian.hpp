@@ -6,7 +6,9 @@
 // Backward Euler linearised once per step (Baraff & Witkin, "Large steps in cloth
 // simulation", SIGGRAPH 1998) solves
 //
-//     A dv = b,   A = M - h df/dv - h^2 df/dx,   b = h f0 + h^2 (df/dx) v0.
+//     A dv = b,   A = M - h df/dv - h^2 df/dx,   b = h f0 + h^2 (df/dx) v0
+//
+// (a viscous drag -c v on the particles, ParticleEffects::drag, adds h c I to A).
 //
 // A is never formed. For a spring s = (a, b) with unit direction d = (x_a - x_b) / L,
 //
@@ -41,8 +43,9 @@ class SpringJacobian {
   explicit SpringJacobian(const Model<S>& model);
 
   /// Caches the springs' linearisation at positions x for a step h (s), and the diagonal
-  /// of A (for a Jacobi preconditioner).
-  void linearize(const Vec3Array<S>& x, S h, const Executor& exec);
+  /// of A (for a Jacobi preconditioner). `drag` (N s/m) is a viscous drag -c v on every
+  /// particle: it adds h c I to A (ParticleEffects::drag; 0 = none).
+  void linearize(const Vec3Array<S>& x, S h, const Executor& exec, S drag = 0);
 
   /// Hands (A p) to `sink` block by block: A = M - h df/dv - h^2 df/dx at the
   /// linearisation. p is (n x 3); rows of pinned particles are not special-cased here.
@@ -67,6 +70,7 @@ class SpringJacobian {
   ScalarArray<S> gamma_;         // (m) h kd, kg
   Vec3Array<S> g_;               // (m x 3) per-spring product, on endpoint a
   Vec3Array<S> diagonal_;        // (n x 3) diag(A)
+  S dragTerm_ = 0;               // h c, kg (the drag's share of A's diagonal)
 };
 
 extern template class SpringJacobian<float>;

@@ -33,6 +33,7 @@ struct SimulationOptions {
   tbb::task_arena* arena = nullptr;  // the embedding program's arena (then `threads` is ignored)
   ForceStrategy forceStrategy = ForceStrategy::Auto;
   Vec3d gravity{0, -9.81, 0};  // m/s^2
+  ParticleEffects effects;     // per-particle effects (viscous drag); absent by default, then free
   StabilityOptions stability;
   IntegratorOptions integration;  // tolerances of rk45, CG settings of implicit
 };
