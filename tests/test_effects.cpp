@@ -719,7 +719,8 @@ TEST(Drag, ImplicitEulerTakesHeavyDragAtStepsWhereExplicitMethodsFail) {
   b.addSpring(0, 1, {1.0, 0.0});
   b.pin(0);
   const ModelAndState<double> scene = b.build();
-  for (const IntegratorKind kind : {IntegratorKind::ExplicitEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler}) {
+  for (const IntegratorKind kind :
+       {IntegratorKind::ExplicitEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler}) {
     SCOPED_TRACE(integratorName(kind));
     SimulationOptions options;
     options.integrator = kind;

@@ -13,37 +13,27 @@
 #include "weft/integrate/integrator.hpp"
 
 namespace {
-// CLI::PositiveNumber lets "nan" through; a time step must be a finite positive number.
-const CLI::Validator finitePositive(
-    [](std::string& text) -> std::string {
-      double value = 0;
-      try {
-        size_t used = 0;
-        value = std::stod(text, &used);
-        if (used != text.size()) return "'" + text + "' is not a number";
-      } catch (const std::exception&) {
-        return "'" + text + "' is not a number";
-      }
-      if (!(std::isfinite(value) && value > 0)) return "must be a finite number > 0, got " + text;
-      return {};
-    },
-    "FINITE > 0");
-
-// A finite number >= 0 (tolerances).
-const CLI::Validator finiteNonNegative(
-    [](std::string& text) -> std::string {
-      double value = 0;
-      try {
-        size_t used = 0;
-        value = std::stod(text, &used);
-        if (used != text.size()) return "'" + text + "' is not a number";
-      } catch (const std::exception&) {
-        return "'" + text + "' is not a number";
-      }
-      if (!(std::isfinite(value) && value >= 0)) return "must be a finite number >= 0, got " + text;
-      return {};
-    },
-    "FINITE >= 0");
+// CLI::PositiveNumber lets "nan" through: a time step or a tolerance must be a finite
+// number (> 0, or >= 0 when zero is allowed).
+CLI::Validator finiteNumber(bool allowZero) {
+  return CLI::Validator(
+      [allowZero](std::string& text) -> std::string {
+        double value = 0;
+        try {
+          size_t used = 0;
+          value = std::stod(text, &used);
+          if (used != text.size()) return "'" + text + "' is not a number";
+        } catch (const std::exception&) {
+          return "'" + text + "' is not a number";
+        }
+        if (!(std::isfinite(value) && (allowZero ? value >= 0 : value > 0)))
+          return std::string("must be a finite number ") + (allowZero ? ">= 0" : "> 0") + ", got " + text;
+        return {};
+      },
+      allowZero ? "FINITE >= 0" : "FINITE > 0");
+}
+const CLI::Validator finitePositive = finiteNumber(false);
+const CLI::Validator finiteNonNegative = finiteNumber(true);
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -2,11 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <string>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
+#include <string>
 
+#include "incidence.hpp"
 #include "weft/effects/spring_force.hpp"
 
 namespace weft {
@@ -160,19 +161,7 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
   switch (strategy_) {
     case ForceStrategy::Gather: {
       springForce_.setZero(m, 3);
-      incidenceOffsets_.setZero(n + 1);
-      for (Index s = 0; s < m; ++s) {
-        ++incidenceOffsets_[sp.a[s] + 1];
-        ++incidenceOffsets_[sp.b[s] + 1];
-      }
-      for (Index i = 0; i < n; ++i) incidenceOffsets_[i + 1] += incidenceOffsets_[i];
-      incidence_.resize(2 * m);
-      std::vector<Index> fill(incidenceOffsets_.data(), incidenceOffsets_.data() + n);
-      // Springs in index order: each particle's list, and so its sum, is in a fixed order.
-      for (Index s = 0; s < m; ++s) {
-        incidence_[fill[sp.a[s]]++] = 2 * s;
-        incidence_[fill[sp.b[s]]++] = 2 * s + 1;
-      }
+      detail::buildIncidence(model, incidenceOffsets_, incidence_);
       break;
     }
     case ForceStrategy::Coloured: {
@@ -439,8 +428,8 @@ template <class S>
 template <class S>
 void ForceField<S>::applyEffects(Index begin, Index count, const Vec3Array<S>& v, S* ax, S* ay, S* az) const {
   if (effects_.drag != 0)
-    addDrag(count, drag_, model_->inverseMass().data() + begin, col(v, 0) + begin, col(v, 1) + begin,
-            col(v, 2) + begin, ax, ay, az);
+    addDrag(count, drag_, model_->inverseMass().data() + begin, col(v, 0) + begin, col(v, 1) + begin, col(v, 2) + begin,
+            ax, ay, az);
 }
 
 template class ForceField<float>;

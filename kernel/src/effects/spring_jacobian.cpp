@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "incidence.hpp"
+
 namespace weft {
 
 namespace {
@@ -72,21 +74,7 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       gamma_(model.springCount()),
       g_(model.springCount(), 3),
       diagonal_(model.particleCount(), 3) {
-  const Index n = model.particleCount();
-  const Index m = model.springCount();
-  const Springs<S>& sp = model.springs();
-  incidenceOffsets_.setZero(n + 1);
-  for (Index s = 0; s < m; ++s) {
-    ++incidenceOffsets_[sp.a[s] + 1];
-    ++incidenceOffsets_[sp.b[s] + 1];
-  }
-  for (Index i = 0; i < n; ++i) incidenceOffsets_[i + 1] += incidenceOffsets_[i];
-  incidence_.resize(2 * m);
-  std::vector<Index> fill(incidenceOffsets_.data(), incidenceOffsets_.data() + n);
-  for (Index s = 0; s < m; ++s) {  // springs in index order: a fixed summation order per particle
-    incidence_[fill[sp.a[s]]++] = 2 * s;
-    incidence_[fill[sp.b[s]]++] = 2 * s + 1;
-  }
+  detail::buildIncidence(model, incidenceOffsets_, incidence_);
   direction_.setZero();
   alpha_.setZero();
   beta_.setZero();

@@ -33,8 +33,8 @@ struct StabilityOptions {
 
 enum class StepCode {
   Ok = 0,
-  NonFinite,      // a position or velocity is NaN or infinite
-  Overstretched,  // a spring exceeds maxStretch x rest length
+  NonFinite,          // a position or velocity is NaN or infinite
+  Overstretched,      // a spring exceeds maxStretch x rest length
   StepSizeUnderflow,  // adaptive error control gave up (IntegratorOptions minSubstep / maxSubsteps)
 };
 const char* stepCodeName(StepCode code);

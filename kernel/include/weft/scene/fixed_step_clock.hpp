@@ -64,7 +64,7 @@ class FixedStepClock {
   double dt_ = 0;
   long double baseTime_ = 0;
   Index baseSteps_ = 0;
-  Vec3Array<S> previous_;    // (n x 3) positions before the last step, m
+  Vec3Array<S> previous_;  // (n x 3) positions before the last step, m
   bool hasPrevious_ = false;
 };
 
