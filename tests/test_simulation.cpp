@@ -42,9 +42,6 @@ RunResult runFlag(const ModelAndState<S>& scene, IntegratorKind kind, ForceStrat
                   tbb::task_arena* arena) {
   SimulationOptions options = flagOptions(kind, strategy, threads, defaultTimeStep(BuiltinScene::Flag, kFlagSize));
   if (kind == IntegratorKind::ExplicitEuler) options.dt /= 4;  // keep explicit Euler stable for the whole run
-  // At the default 1e-6, float's rounding noise in rk45's error estimate takes ~4x the
-  // substeps of double (and this test ~10x the time); 1e-5 still substeps and rejects.
-  if (std::is_same_v<S, float>) options.integration.relativeTolerance = options.integration.absoluteTolerance = 1e-5;
   options.arena = arena;
   Simulation<S> sim(ModelAndState<S>{scene.model, scene.state}, options);
   RunResult r;
@@ -95,7 +92,6 @@ TYPED_TEST(Determinism, LargeFlagWithEveryPassSplitIntoBlocks) {
     SCOPED_TRACE(forceStrategyName(strategy));
     SimulationOptions options = flagOptions(kind, strategy, 1, defaultTimeStep(BuiltinScene::Flag, size));
     if (kind == IntegratorKind::ExplicitEuler) options.dt /= 4;
-    if (std::is_same_v<S, float>) options.integration.relativeTolerance = options.integration.absoluteTolerance = 1e-5;
     std::uint64_t hash[2] = {0, 0};
     for (const int threads : {1, 2}) {
       options.threads = threads;

@@ -287,14 +287,8 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, c
     alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
     const S gx = gx_, gy = gy_, gz = gz_;
     for (Index i = b; i < e; ++i) {
-      S fx = 0, fy = 0, fz = 0;
-      for (Index k = off[i]; k < off[i + 1]; ++k) {
-        const Index s = inc[k] >> 1;
-        const S sign = (inc[k] & 1) ? S(-1) : S(1);
-        fx += sign * Fx[s];
-        fy += sign * Fy[s];
-        fz += sign * Fz[s];
-      }
+      S fx, fy, fz;
+      detail::sumIncident(off, inc, i, Fx, Fy, Fz, fx, fy, fz);
       const S wi = w[i];
       const bool free = wi > S(0);
       ax[i - b] = wi * fx + (free ? gx : S(0));

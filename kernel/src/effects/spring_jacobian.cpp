@@ -131,14 +131,8 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
     const S dragTerm = dragTerm_;
     alignas(64) S yx[kBlock], yy[kBlock], yz[kBlock];
     for (Index i = b; i < e; ++i) {
-      S sx = 0, sy = 0, sz = 0;
-      for (Index k = off[i]; k < off[i + 1]; ++k) {
-        const Index s = inc[k] >> 1;
-        const S sign = (inc[k] & 1) ? S(-1) : S(1);
-        sx += sign * Gx[s];
-        sy += sign * Gy[s];
-        sz += sign * Gz[s];
-      }
+      S sx, sy, sz;
+      detail::sumIncident(off, inc, i, Gx, Gy, Gz, sx, sy, sz);
       if constexpr (kSystem) {
         const S mi = mass[i] + dragTerm;
         sx += mi * Px[i];
