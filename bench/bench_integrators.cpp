@@ -190,34 +190,3 @@ void BM_Textbook_Rk4_double(benchmark::State& st) {
 BENCHMARK(BM_Textbook_Rk4_double)->Arg(128)->ArgName("size")->UseRealTime()->Unit(benchmark::kMicrosecond);
 
 }  // namespace
-
-namespace {
-
-// BM_Effects_Drag: one RK4 step of the 128^2 flag (double) without (drag:0) and with
-// (drag:1) viscous drag. An absent effect must cost nothing: the two differ by the drag
-// pass only (one extra vectorised loop per block of 256 particles when present).
-void BM_Effects_Drag(benchmark::State& st) {
-  weft::SimulationOptions options;
-  options.integrator = weft::IntegratorKind::Rk4;
-  options.threads = static_cast<int>(st.range(1));
-  options.dt = weft::defaultTimeStep(weft::BuiltinScene::Flag, 128);
-  options.effects.drag = st.range(0) ? 1e-4 : 0.0;
-  weft::Simulation<double> sim(weft::makeFlag<double>(128), options);
-  const weft::State<double> initial = sim.state();
-  std::int64_t steps = 0;
-  for (auto _ : st) {
-    if (!sim.step().ok() || ++steps % 400 == 0) {
-      st.PauseTiming();
-      sim.setState(initial);
-      st.ResumeTiming();
-    }
-  }
-  st.counters["steps_per_second"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate);
-}
-BENCHMARK(BM_Effects_Drag)
-    ->ArgsProduct({{0, 1}, {1, 2}})
-    ->ArgNames({"drag", "threads"})
-    ->UseRealTime()
-    ->Unit(benchmark::kMicrosecond);
-
-}  // namespace

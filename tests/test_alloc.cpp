@@ -220,6 +220,50 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
     }
 }
 
+TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
+  // Drag, gusty wind, repulsion and a kinematic bar, with effect profiling on, for an
+  // explicit, an adaptive and the implicit method on 1 and 2 threads.
+  ClothGridSpec spec = flagSpec(kFlagSize);
+  spec.columnAxis = {0, -1, 0};
+  ModelBuilder<double> b;
+  addClothGrid(b, spec);
+  KinematicPins bar;
+  for (Index c = 0; c < kFlagSize; ++c) {
+    b.pin(c);
+    bar.particles.push_back(c);
+  }
+  bar.path.angularVelocity = 2;
+  bar.path.center = {0.5, 0, 0};
+  const ModelAndState<double> cloth = b.build();
+  for (const IntegratorKind kind : {IntegratorKind::Rk4, IntegratorKind::Rk45, IntegratorKind::ImplicitEuler})
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE(::testing::Message() << integratorName(kind) << ", " << threads << " thread(s)");
+      SimulationOptions options;
+      options.integrator = kind;
+      options.threads = threads;
+      options.dt = defaultTimeStep(BuiltinScene::Flag, kFlagSize);
+      options.effects.drag = 1e-3;
+      options.effects.wind.enabled = true;
+      options.effects.wind.velocity = {3, 0, 2};
+      options.effects.wind.gustStrength = 1;
+      options.effects.repulsion.radius = 0.5 * spec.spacing;
+      options.effects.repulsion.stiffness = 100;
+      options.kinematicPins.push_back(bar);
+      options.profileEffects = true;
+      Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
+      ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
+      StepStatus status;
+      const Counts steps = countDuring([&] {
+        for (int k = 0; k < 20; ++k) status = sim.step();
+      });
+      ASSERT_TRUE(status.ok()) << status.message();
+      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
+      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      EXPECT_GT(sim.effectTimes().forces.wind, 0);
+      EXPECT_GT(sim.effectTimes().forces.repulsion, 0);
+    }
+}
+
 TEST(ClockAllocation, AdvancingAndInterpolatingDoNotAllocate) {
   SimulationOptions options;
   options.threads = 2;

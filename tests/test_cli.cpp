@@ -197,6 +197,37 @@ TEST(Cli, StabilityFailureExitsWithThreeAndNamesTheParticle) {
   EXPECT_NE(j["status_message"].get<std::string>().find("particle"), std::string::npos) << j["status_message"];
 }
 
+TEST(Cli, SceneEffectsAndTheirTimesAreReported) {
+  // A scene without effects lists none; flag-wind and hanging-cloth list theirs, each
+  // with the CPU time spent in it.
+  const nlohmann::json plain = runJson("run flag --size 8 --steps 5");
+  ASSERT_TRUE(plain.is_object());
+  EXPECT_EQ(plain["effects"], nlohmann::json::array());
+  EXPECT_EQ(plain["effect_cpu_seconds"], nlohmann::json::object());
+  EXPECT_EQ(plain["triangles"], 2 * 7 * 7);
+  const nlohmann::json wind = runJson("run flag-wind --size 10 --steps 50 --threads 2");
+  ASSERT_TRUE(wind.is_object());
+  EXPECT_EQ(wind["status"], "ok");
+  EXPECT_EQ(wind["effects"], (nlohmann::json{"drag", "wind"}));
+  EXPECT_GT(wind["effect_cpu_seconds"]["wind"].get<double>(), 0);
+  const nlohmann::json hanging = runJson("run hanging-cloth --size 10 --steps 50");
+  ASSERT_TRUE(hanging.is_object());
+  EXPECT_EQ(hanging["status"], "ok");
+  EXPECT_EQ(hanging["effects"], (nlohmann::json{"drag", "repulsion", "kinematic_pins"}));
+  for (const char* e : {"drag", "repulsion", "kinematic_pins"})
+    EXPECT_TRUE(hanging["effect_cpu_seconds"].contains(e)) << e;
+}
+
+TEST(Cli, OptionsOverrideTheScene) {
+  // The built-in flag-wind scene runs its own integrator and step unless told otherwise.
+  const nlohmann::json j = runJson("run flag-wind --size 10 --steps 4 --dt 1e-4 --integrator midpoint --drag 0");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["integrator"], "midpoint");
+  EXPECT_EQ(j["dt"], 1e-4);
+  EXPECT_EQ(j["steps"], 4);
+  EXPECT_EQ(j["effects"], (nlohmann::json{"wind"}));
+}
+
 TEST(Cli, FramesOutWritesOneObjPerFrame) {
   const std::string dir = ::testing::TempDir() + "weft_cli_frames_obj";
   std::filesystem::remove_all(dir);

@@ -392,10 +392,32 @@ TYPED_TEST(ModelTest, BadGridSpecsThrow) {
   spec.rowAxis = {0, 0, 0};
   expectInvalid([&] { addClothGrid(b, spec); }, "rowAxis", "");
   EXPECT_EQ(b.particleCount(), 0);
+}
 
-  // The grid layout indexes from particle 0: the builder must be empty.
-  b.addParticle({0, 0, 0}, 1);
-  expectInvalid([&] { addClothGrid(b, gridSpec(3, 3)); }, "empty", "");
+TYPED_TEST(ModelTest, GridAfterOtherParticlesIsOffsetAndHasNoLayout) {
+  using S = TypeParam;
+  // A grid added after other particles is indexed from them, with its springs and
+  // triangles; it carries no grid layout (the stencil indexes from particle 0), so the
+  // model's strategy is the general one.
+  ModelBuilder<S> b;
+  b.addParticle({5, 5, 5}, 1);
+  const ClothGridSpec spec = gridSpec(3, 4);
+  addClothGrid(b, spec);
+  ASSERT_EQ(b.particleCount(), 1 + 12);
+  const auto counts = expectedGridSpringCounts(spec);
+  EXPECT_EQ(b.springCount(), counts[0] + counts[1] + counts[2]);
+  EXPECT_EQ(b.triangleCount(), 2 * 2 * 3);
+  const ModelAndState<S> built = b.build();
+  EXPECT_FALSE(built.model.grid().has_value());
+  const Springs<S>& sp = built.model.springs();
+  for (Index s = 0; s < sp.count(); ++s) {
+    EXPECT_GE(sp.a[s], 1);
+    EXPECT_GE(sp.b[s], 1);
+    EXPECT_NEAR(static_cast<double>((built.state.x.row(sp.a[s]) - built.state.x.row(sp.b[s])).norm()),
+                static_cast<double>(sp.restLength[s]), 1e-6);
+  }
+  const Triangles& tr = built.model.triangles();
+  for (Index t = 0; t < tr.count(); ++t) EXPECT_GE(std::min({tr.a[t], tr.b[t], tr.c[t]}), 1);
 }
 
 TYPED_TEST(ModelTest, InconsistentGridLayoutIsRejectedAtBuild) {

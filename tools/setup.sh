@@ -11,6 +11,7 @@ packages=(
   libbenchmark-dev                 # Google Benchmark
   libcli11-dev                     # CLI11: command-line parsing for `weft`
   nlohmann-json3-dev               # JSON output of `weft run --json`
+  libassimp-dev                    # assimp: mesh import (OBJ, 3DS, ...) for weft::io
   libboost-dev                     # Boost.Odeint (header-only): test-only cross-check of rk4/rk45
   python3-matplotlib               # plots of `weft study` (run with /usr/bin/python3)
 )

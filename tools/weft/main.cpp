@@ -41,9 +41,11 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   weftcli::RunOptions run;
   CLI::App* cmd = app.add_subcommand("run", "Run a built-in scene and print its figures");
-  cmd->add_option("scene", run.scene, "Scene: flag (64 x 64 cloth pinned at two corners) or rope")
-      ->check(CLI::IsMember({"flag", "rope"}));
-  cmd->add_option("--size", run.size, "Grid side (flag) or particle count (rope); default 64")
+  cmd->add_option("scene", run.scene,
+                  "A built-in scene (flag: 64 x 64 cloth pinned at two corners; rope; flag-wind: a flag on a pole "
+                  "in gusty wind; hanging-cloth: cloth on a turning bar) or a JSON scene file (docs/scenes.md). "
+                  "Options given below override the scene's values");
+  cmd->add_option("--size", run.size, "Built-in scenes: grid side (cloth) or particle count (rope); default 64")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
@@ -51,16 +53,14 @@ int main(int argc, char** argv) {
   for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
   cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit")
       ->check(CLI::IsMember(integrators));
-  cmd->add_option("--rtol", run.integration.relativeTolerance, "rk45: relative tolerance per coordinate (>= 0)")
+  cmd->add_option("--rtol", run.relativeTolerance, "rk45: relative tolerance per coordinate (>= 0)")
       ->check(finiteNonNegative);
-  cmd->add_option("--atol", run.integration.absoluteTolerance,
-                  "rk45: absolute tolerance per coordinate, m and m/s (> 0)")
+  cmd->add_option("--atol", run.absoluteTolerance, "rk45: absolute tolerance per coordinate, m and m/s (> 0)")
       ->check(finitePositive);
   cmd->add_flag("--fixed-step", run.fixedStep, "rk45: one fixed Dormand-Prince step per step, no error control");
-  cmd->add_option("--cg-tolerance", run.integration.linearTolerance,
-                  "implicit: CG stops at |r| <= this x |b| (in [0, 1))")
+  cmd->add_option("--cg-tolerance", run.linearTolerance, "implicit: CG stops at |r| <= this x |b| (in [0, 1))")
       ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
-  cmd->add_option("--cg-max-iterations", run.integration.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
+  cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
@@ -76,6 +76,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::int64_t(1), std::numeric_limits<std::int64_t>::max()))
       ->needs(out);
   cmd->add_flag("--json", run.json, "Print exactly one JSON object instead of the summary");
+  cmd->add_flag("!--no-progress", run.progress, "No progress bar (there is none with --json or when not a terminal)");
 
   weftcli::StudyOptions study;
   CLI::App* studyCmd = app.add_subcommand(

@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "energy.hpp"
+#include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
 namespace weftcli {
@@ -67,10 +68,10 @@ std::string workLine(const weft::StepWork& w, std::int64_t steps) {
 template <class S>
 class FrameSink {
  public:
-  FrameSink(const RunOptions& o, const weft::Model<S>& model) : dir_(o.out), format_(o.format) {
+  FrameSink(const weft::OutputSpec& o, const weft::Model<S>& model) : dir_(o.directory), format_(o.format) {
     std::error_code error;
     std::filesystem::create_directories(dir_, error);
-    if (error) throw std::runtime_error("cannot create --out directory '" + dir_ + "': " + error.message());
+    if (error) throw std::runtime_error("cannot create the output directory '" + dir_ + "': " + error.message());
     if (format_ == "cache")
       cache_.emplace((std::filesystem::path(dir_) / "frames.wcache").string(), model.particleCount());
     else
@@ -104,42 +105,120 @@ class FrameSink {
   std::int64_t written_ = 0;
 };
 
-template <class S>
-int run(const RunOptions& o) {
-  const weft::BuiltinScene scene = weft::parseBuiltinScene(o.scene);
-  const weft::Index size = o.size > 0 ? static_cast<weft::Index>(o.size) : weft::defaultSceneSize(scene);
-  weft::SimulationOptions options;
-  options.integrator = weft::parseIntegrator(o.integrator);
-  options.dt = o.dt > 0 ? o.dt : weft::defaultTimeStep(scene, size);
-  options.threads = o.threads;
-  options.forceStrategy = weft::parseForceStrategy(o.strategy);
-  options.integration = o.integration;
-  options.effects.drag = o.drag;
-  options.integration.adaptive = !o.fixedStep;
-  weft::Simulation<S> sim(weft::makeBuiltinScene<S>(scene, size), options);
+/// A one-line progress bar on stdout, drawn only when stdout is a terminal and only once
+/// the run has taken more than a second.
+class Progress {
+ public:
+  Progress(bool enabled, std::int64_t total) : enabled_(enabled && isatty(STDOUT_FILENO) == 1), total_(total) {}
+  void update(std::int64_t done) {
+    if (!enabled_) return;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (elapsed < 1.0 || elapsed - lastDraw_ < 0.1) return;
+    lastDraw_ = elapsed;
+    const double fraction = total_ > 0 ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
+    const int width = 40, filled = static_cast<int>(fraction * width);
+    const double eta = fraction > 0 ? elapsed * (1 - fraction) / fraction : 0;
+    std::printf("\r[%.*s%*s] %3.0f%% %lld/%lld steps, %.1f s left ", filled, "########################################",
+                width - filled, "", 100 * fraction, static_cast<long long>(done), static_cast<long long>(total_), eta);
+    std::fflush(stdout);
+    drawn_ = true;
+  }
+  void finish() {
+    if (drawn_) {
+      std::printf("\r%*s\r", 80, "");
+      std::fflush(stdout);
+    }
+  }
 
-  // Without --out the run is one sim.run(steps). With it, the steps go in chunks of
-  // --every with a frame after each; wall time counts the stepping only.
+ private:
+  bool enabled_;
+  std::int64_t total_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  double lastDraw_ = 0;
+  bool drawn_ = false;
+};
+
+/// The scene with the command line's explicit settings applied over it.
+weft::SceneSpec sceneFor(const RunOptions& o) {
+  // A built-in scene name, else a scene file (anything that exists or ends in .json);
+  // anything else is an unknown scene name (builtinSceneSpec lists the known ones).
+  bool builtin = false;
+  for (const std::string& n : weft::builtinSceneNames()) builtin = builtin || n == o.scene;
+  weft::SceneSpec spec;
+  if (!builtin && (o.scene.ends_with(".json") || std::filesystem::exists(o.scene))) {
+    if (o.size > 0) throw std::invalid_argument("--size applies to built-in scenes only, not to '" + o.scene + "'");
+    spec = weft::readSceneFile(o.scene);
+  } else {
+    spec = weft::builtinSceneSpec(o.scene, static_cast<weft::Index>(o.size));
+  }
+  weft::SimulationOptions& sim = spec.simulation;
+  if (o.steps) {
+    spec.steps = *o.steps;
+    spec.duration = 0;
+  }
+  if (o.dt) {
+    const std::int64_t steps = weft::sceneStepCount(spec);
+    sim.dt = *o.dt;
+    if (spec.steps <= 0) spec.steps = steps;  // a duration-based file keeps its step count
+  }
+  if (o.integrator) sim.integrator = weft::parseIntegrator(*o.integrator);
+  if (o.relativeTolerance) sim.integration.relativeTolerance = *o.relativeTolerance;
+  if (o.absoluteTolerance) sim.integration.absoluteTolerance = *o.absoluteTolerance;
+  if (o.linearTolerance) sim.integration.linearTolerance = *o.linearTolerance;
+  if (o.maxLinearIterations) sim.integration.maxLinearIterations = static_cast<weft::Index>(*o.maxLinearIterations);
+  if (o.fixedStep) sim.integration.adaptive = false;
+  if (o.drag) sim.effects.drag = *o.drag;
+  if (o.precision) spec.precision = *o.precision == "float" ? weft::Precision::Float : weft::Precision::Double;
+  if (o.threads) sim.threads = *o.threads;
+  if (o.strategy) sim.forceStrategy = weft::parseForceStrategy(*o.strategy);
+  if (o.out) spec.output.directory = *o.out;
+  if (o.format) spec.output.format = *o.format;
+  if (o.every) spec.output.every = *o.every;
+  return spec;
+}
+
+std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
+  std::vector<std::string> names;
+  if (o.effects.drag != 0) names.emplace_back("drag");
+  if (o.effects.wind.enabled) names.emplace_back("wind");
+  if (o.effects.repulsion.enabled()) names.emplace_back("repulsion");
+  if (!o.kinematicPins.empty()) names.emplace_back("kinematic_pins");
+  return names;
+}
+
+template <class S>
+int run(const RunOptions& o, const weft::SceneSpec& spec) {
+  weft::AssembledScene<S> assembled = weft::assembleScene<S>(spec);
+  weft::SimulationOptions options = assembled.options;
+  options.profileEffects = true;  // two clock reads per block and effect; none without effects
+  const std::vector<std::string> effects = effectNames(options);
+  weft::Simulation<S> sim(std::move(assembled.built), options);
+  const std::int64_t steps = weft::sceneStepCount(spec);
+  const weft::OutputSpec& output = spec.output;
+  const std::string precision = spec.precision == weft::Precision::Float ? "float" : "double";
+
+  // Steps go in chunks (a frame after each chunk of `every` steps when writing frames;
+  // otherwise chunks of about 1% for the progress bar). Wall time counts the stepping only.
   std::optional<FrameSink<S>> frames;
+  if (!output.directory.empty()) {
+    frames.emplace(output, sim.model());
+    frames->write(sim.state());
+  }
+  const std::int64_t chunkSize = frames ? output.every : std::max<std::int64_t>(1, steps / 100);
+  Progress progress(o.progress && !o.json, steps);
   weft::StepStatus status;
   double wall = 0;
-  if (o.out.empty()) {
+  for (std::int64_t remaining = steps; remaining > 0 && status.ok();) {
+    const std::int64_t chunk = std::min(remaining, chunkSize);
     const auto start = std::chrono::steady_clock::now();
-    status = sim.run(static_cast<weft::Index>(o.steps));
-    wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  } else {
-    frames.emplace(o, sim.model());
-    frames->write(sim.state());
-    for (std::int64_t remaining = o.steps; remaining > 0 && status.ok();) {
-      const std::int64_t chunk = std::min(remaining, o.every);
-      const auto start = std::chrono::steady_clock::now();
-      status = sim.run(static_cast<weft::Index>(chunk));
-      wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      remaining -= chunk;
-      if (status.ok() && chunk == o.every) frames->write(sim.state());
-    }
-    frames->close();
+    status = sim.run(static_cast<weft::Index>(chunk));
+    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    remaining -= chunk;
+    if (frames && status.ok() && chunk == output.every) frames->write(sim.state());
+    progress.update(steps - remaining);
   }
+  progress.finish();
+  if (frames) frames->close();
 
   const weft::Model<S>& model = sim.model();
   const weft::State<S>& state = sim.state();
@@ -152,19 +231,28 @@ int run(const RunOptions& o) {
   const Energy e = energy(model, state, options.gravity);
   const double lowest = static_cast<double>(state.x.col(1).minCoeff());
   const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
+  const weft::SceneEffectTimes times = sim.effectTimes();
+  const auto effectSeconds = [&](const std::string& name) {
+    if (name == "drag") return times.forces.drag;
+    if (name == "wind") return times.forces.wind;
+    if (name == "repulsion") return times.forces.repulsion;
+    return times.kinematicPins;
+  };
 
   if (o.json) {
     nlohmann::ordered_json j;
-    j["scene"] = o.scene;
+    j["scene"] = spec.name;
+    j["bodies"] = spec.bodies.size();
     j["particles"] = model.particleCount();
     j["springs"] = model.springCount();
     j["springs_by_class"] = {{"structural", byClass[0]}, {"shear", byClass[1]}, {"bend", byClass[2]}};
+    j["triangles"] = model.triangleCount();
     j["integrator"] = weft::integratorName(options.integrator);
-    j["precision"] = o.precision;
+    j["precision"] = precision;
     j["threads"] = sim.threadCount();
     j["force_strategy"] = weft::forceStrategyName(sim.forceStrategy());
     j["steps"] = done;
-    j["steps_requested"] = o.steps;
+    j["steps_requested"] = steps;
     j["dt"] = options.dt;
     j["simulated_seconds"] = state.time;
     j["wall_seconds"] = wall;
@@ -173,6 +261,11 @@ int run(const RunOptions& o) {
     j["force_evaluations"] = sim.forceEvaluations();
     j["work_per_step"] = workJson(sim.totalWork(), done);
     j["work_total"] = workJson(sim.totalWork(), 1);
+    j["effects"] = effects;
+    // CPU seconds (summed over threads) spent in each effect the scene lists.
+    nlohmann::ordered_json perEffect = nlohmann::ordered_json::object();
+    for (const std::string& name : effects) perEffect[name] = effectSeconds(name);
+    j["effect_cpu_seconds"] = perEffect;
     if (std::isfinite(stableDt))
       j["stable_dt_estimate"] = stableDt;
     else
@@ -182,25 +275,30 @@ int run(const RunOptions& o) {
     j["state_hash"] = hash;
     j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
     j["lowest_y"] = lowest;
+    if (!assembled.meshReports.empty()) j["meshes"] = assembled.meshReports;
     if (frames) {
       j["frames_written"] = frames->written();
-      j["output"] = o.out;
+      j["output"] = output.directory;
     }
     j["peak_rss_mb"] = peakResidentMegabytes();
     std::cout << j.dump() << std::endl;
   } else {
     std::ostringstream out;
     out.precision(6);
-    out << "weft run " << o.scene << "\n"
+    out << "weft run " << spec.name << "\n"
         << "  model        " << model.particleCount() << " particles (" << model.pinnedCount() << " pinned), "
         << model.springCount() << " springs (structural " << byClass[0] << ", shear " << byClass[1] << ", bend "
-        << byClass[2] << ")\n"
-        << "  integrator   " << weft::integratorName(options.integrator) << ", " << o.precision << ", dt " << options.dt
+        << byClass[2] << "), " << model.triangleCount() << " triangles, " << spec.bodies.size() << " bodies\n";
+    for (const std::string& report : assembled.meshReports) out << "  mesh         " << report << "\n";
+    out << "  integrator   " << weft::integratorName(options.integrator) << ", " << precision << ", dt " << options.dt
         << " s, " << sim.threadCount() << " thread(s), forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
         << "  stable dt    " << (std::isfinite(stableDt) ? std::to_string(stableDt) + " s" : std::string("unlimited"))
-        << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n"
+        << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n";
+    out << "  effects      springs, gravity";
+    for (const std::string& name : effects) out << ", " << name << " (" << effectSeconds(name) << " CPU s)";
+    out << "\n"
         << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
-        << "  steps        " << done << " of " << o.steps << " (" << state.time << " s simulated)\n"
+        << "  steps        " << done << " of " << steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"
         << "  energy       kinetic " << e.kinetic << " J, spring " << e.spring << " J, gravity " << e.gravity
@@ -209,8 +307,8 @@ int run(const RunOptions& o) {
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakResidentMegabytes() << " MB resident\n";
     if (frames)
-      out << "  frames       " << frames->written() << " (" << o.format << ", every " << o.every << " steps) in "
-          << o.out << "\n";
+      out << "  frames       " << frames->written() << " (" << output.format << ", every " << output.every
+          << " steps) in " << output.directory << "\n";
     std::cout << out.str();
   }
   return status.ok() ? 0 : 3;
@@ -219,7 +317,8 @@ int run(const RunOptions& o) {
 }  // namespace
 
 int runScene(const RunOptions& options) {
-  return options.precision == "float" ? run<float>(options) : run<double>(options);
+  const weft::SceneSpec spec = sceneFor(options);
+  return spec.precision == weft::Precision::Float ? run<float>(options, spec) : run<double>(options, spec);
 }
 
 }  // namespace weftcli

@@ -1,35 +1,40 @@
-// `weft run`: run a built-in scene and summarise it.
+// `weft run`: run a built-in scene or a JSON scene file and summarise it.
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "weft/integrate/integrator.hpp"
 
 namespace weftcli {
 
+/// Command-line settings. Every optional one overrides the scene's value when given.
 struct RunOptions {
-  std::string scene = "flag";
-  std::int64_t size = 0;  // 0: the scene's default
-  std::int64_t steps = 2000;
-  double dt = 0;  // 0: the scene's default
-  std::string integrator = "rk4";
-  weft::IntegratorOptions integration;  // rk45 tolerances, implicit CG settings
-  bool fixedStep = false;               // rk45 without error control
-  double drag = 0;                      // viscous drag, N s/m (0: absent)
-  std::string precision = "double";
-  int threads = 0;
-  std::string strategy = "auto";
+  std::string scene = "flag";  // a built-in scene name or the path of a .json scene file
+  std::int64_t size = 0;       // built-in scenes: grid side or particle count (0: default)
+  std::optional<std::int64_t> steps;
+  std::optional<double> dt;
+  std::optional<std::string> integrator;
+  std::optional<double> relativeTolerance, absoluteTolerance, linearTolerance;
+  std::optional<std::int64_t> maxLinearIterations;
+  bool fixedStep = false;  // rk45 without error control
+  std::optional<double> drag;
+  std::optional<std::string> precision;
+  std::optional<int> threads;
+  std::optional<std::string> strategy;
   bool json = false;
-  std::string out;             // frames directory; empty: write no frames
-  std::string format = "obj";  // obj | ply | cache
-  std::int64_t every = 1;      // write a frame every this many steps (>= 1)
+  bool progress = true;  // a progress bar when stdout is a terminal and the run is long
+  std::optional<std::string> out;
+  std::optional<std::string> format;
+  std::optional<std::int64_t> every;
 };
 
 /// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
-/// 0 when every step succeeded, 3 when the stability check stopped the run. With `out`,
-/// frames go to that directory (created): frame 0 is the initial state, then one frame
-/// after every `every` steps (frame_000000.obj / .ply, or one frames.wcache).
+/// 0 when every step succeeded, 3 when the stability check stopped the run. With an
+/// output directory, frames go there (created): frame 0 is the initial state, then one
+/// frame after every `every` steps (frame_000000.obj / .ply, or one frames.wcache).
+/// Throws for a bad scene (std::exception with a message naming file, field and value).
 int runScene(const RunOptions& options);
 
 }  // namespace weftcli

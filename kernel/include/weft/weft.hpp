@@ -3,10 +3,13 @@
 
 #include "weft/core/parallel.hpp"
 #include "weft/core/state.hpp"
+#include "weft/effects/effects.hpp"
 #include "weft/effects/spring_jacobian.hpp"
 #include "weft/io/frames.hpp"
 #include "weft/model/builder.hpp"
 #include "weft/model/builders.hpp"
+#include "weft/model/cloth_mesh.hpp"
+#include "weft/model/triangle_mesh.hpp"
 #include "weft/scene/builtin_scenes.hpp"
 #include "weft/scene/fixed_step_clock.hpp"
 #include "weft/scene/simulation.hpp"

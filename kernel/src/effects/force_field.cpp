@@ -1,14 +1,18 @@
 #include "weft/effects/force_field.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
 #include "incidence.hpp"
+#include "repulsion.hpp"
 #include "weft/effects/spring_force.hpp"
+#include "wind.hpp"
 
 namespace weft {
 
@@ -148,9 +152,14 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
       gy_(static_cast<S>(gravity.y)),
       gz_(static_cast<S>(gravity.z)),
       effects_(effects),
+      anyEffect_(effects.any()),
       drag_(static_cast<S>(effects.drag)) {
-  if (!(std::isfinite(effects.drag) && effects.drag >= 0 && effects.drag <= std::numeric_limits<S>::max()))
-    throw std::invalid_argument("effects.drag must be finite and >= 0 (N s/m), got " + std::to_string(effects.drag));
+  validateEffects(effects);
+  if (!(effects.drag <= std::numeric_limits<S>::max()))
+    throw std::invalid_argument("effects.drag must be within the range of the model's precision, got " +
+                                std::to_string(effects.drag));
+  if (effects.wind.enabled) wind_ = std::make_unique<detail::WindForce<S>>(model, effects.wind);
+  if (effects.repulsion.enabled()) repulsion_ = std::make_unique<detail::Repulsion<S>>(model, effects.repulsion);
   const Index n = model.particleCount();
   const Index m = model.springCount();
   const Springs<S>& sp = model.springs();
@@ -241,8 +250,12 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
 }
 
 template <class S>
+ForceField<S>::~ForceField() = default;
+
+template <class S>
 void ForceField<S>::accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                                   const Executor& exec) {
+  if (wind_ || repulsion_) prepareEffects(x, v, exec);
   switch (strategy_) {
     case ForceStrategy::Gather:
       gatherForces(x, v, sink, exec);
@@ -295,7 +308,7 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, c
       ay[i - b] = wi * fy + (free ? gy : S(0));
       az[i - b] = wi * fz + (free ? gz : S(0));
     }
-    if (effects_.any()) applyEffects(b, e - b, v, ax, ay, az);
+    if (anyEffect_) applyEffects(b, e - b, x, v, ax, ay, az);
     sink(b, e - b, ax, ay, az);
   });
 }
@@ -336,7 +349,7 @@ void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v,
     alignas(64) S ax[kSinkBlock], ay[kSinkBlock], az[kSinkBlock];
     finishAccelerations(e - b, w + b, col(force_, 0) + b, col(force_, 1) + b, col(force_, 2) + b, gx_, gy_, gz_, ax, ay,
                         az);
-    if (effects_.any()) applyEffects(b, e - b, v, ax, ay, az);
+    if (anyEffect_) applyEffects(b, e - b, x, v, ax, ay, az);
     sink(b, e - b, ax, ay, az);
   });
 }
@@ -398,7 +411,7 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
                     window + (k * 3 + 1) * windowSize_ + p, window + (k * 3 + 2) * windowSize_ + p, tx, ty, tz);
         finishAccelerations(len, w + j0, tx, ty, tz, gx_, gy_, gz_, ax, ay, az);
       }
-      if (effects_.any()) applyEffects(j0, len, v, ax, ay, az);
+      if (anyEffect_) applyEffects(j0, len, x, v, ax, ay, az);
       sink(j0, len, ax, ay, az);
     }
   });
@@ -419,11 +432,96 @@ template <class S>
 }
 }  // namespace
 
+namespace {
+using Clock = std::chrono::steady_clock;
+std::int64_t elapsedNs(Clock::time_point since) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - since).count();
+}
+}  // namespace
+
 template <class S>
-void ForceField<S>::applyEffects(Index begin, Index count, const Vec3Array<S>& v, S* ax, S* ay, S* az) const {
+void ForceField<S>::prepareEffects(const Vec3Array<S>& x, const Vec3Array<S>& v, const Executor& exec) {
+  if (wind_) {
+    const auto start = profiling_ ? Clock::now() : Clock::time_point{};
+    wind_->prepare(x, v, time_, exec);
+    if (profiling_) windNs_.fetch_add(elapsedNs(start) * exec.threadCount(), std::memory_order_relaxed);
+  }
+  if (repulsion_) {
+    const auto start = profiling_ ? Clock::now() : Clock::time_point{};
+    repulsion_->prepare(x, exec);
+    if (profiling_) repulsionNs_.fetch_add(elapsedNs(start) * exec.threadCount(), std::memory_order_relaxed);
+  }
+}
+
+template <class S>
+void ForceField<S>::applyEffects(Index begin, Index count, const Vec3Array<S>& x, const Vec3Array<S>& v, S* ax, S* ay,
+                                 S* az) const {
+  auto timed = [&](std::atomic<std::int64_t>& ns, auto&& body) {
+    if (!profiling_) return body();
+    const auto start = Clock::now();
+    body();
+    ns.fetch_add(elapsedNs(start), std::memory_order_relaxed);
+  };
   if (effects_.drag != 0)
-    addDrag(count, drag_, model_->inverseMass().data() + begin, col(v, 0) + begin, col(v, 1) + begin, col(v, 2) + begin,
-            ax, ay, az);
+    timed(dragNs_, [&] {
+      addDrag(count, drag_, model_->inverseMass().data() + begin, col(v, 0) + begin, col(v, 1) + begin,
+              col(v, 2) + begin, ax, ay, az);
+    });
+  if (wind_) timed(windNs_, [&] { wind_->add(begin, count, ax, ay, az); });
+  if (repulsion_) timed(repulsionNs_, [&] { repulsion_->add(begin, count, x, ax, ay, az); });
+}
+
+template <class S>
+EffectTimes ForceField<S>::effectTimes() const {
+  EffectTimes t;
+  t.drag = 1e-9 * static_cast<double>(dragNs_.load(std::memory_order_relaxed));
+  t.wind = 1e-9 * static_cast<double>(windNs_.load(std::memory_order_relaxed));
+  t.repulsion = 1e-9 * static_cast<double>(repulsionNs_.load(std::memory_order_relaxed));
+  return t;
+}
+
+template <class S>
+Vec3d ForceField<S>::airVelocity(const Vec3d& x, double time) const {
+  return wind_ ? wind_->airVelocity(x, time) : effects_.wind.velocity;
+}
+
+namespace {
+void requireField(bool ok, const std::string& field, double value, const char* rule) {
+  if (ok) return;
+  std::ostringstream msg;
+  msg.precision(17);
+  msg << field << " must be " << rule << ", got " << value;
+  throw std::invalid_argument(msg.str());
+}
+}  // namespace
+
+void validateEffects(const ParticleEffects& e, const char* where) {
+  const std::string w = std::string(where) + ".";
+  requireField(std::isfinite(e.drag) && e.drag >= 0, w + "drag", e.drag, "finite and >= 0 (N s/m)");
+  const WindEffect& wind = e.wind;
+  requireField(std::isfinite(wind.velocity.x), w + "wind.velocity.x", wind.velocity.x, "finite (m/s)");
+  requireField(std::isfinite(wind.velocity.y), w + "wind.velocity.y", wind.velocity.y, "finite (m/s)");
+  requireField(std::isfinite(wind.velocity.z), w + "wind.velocity.z", wind.velocity.z, "finite (m/s)");
+  requireField(std::isfinite(wind.airDensity) && wind.airDensity > 0, w + "wind.airDensity", wind.airDensity,
+               "finite and > 0 (kg/m^3)");
+  requireField(std::isfinite(wind.dragCoefficient) && wind.dragCoefficient >= 0, w + "wind.dragCoefficient",
+               wind.dragCoefficient, "finite and >= 0");
+  requireField(std::isfinite(wind.liftCoefficient) && wind.liftCoefficient >= 0, w + "wind.liftCoefficient",
+               wind.liftCoefficient, "finite and >= 0");
+  requireField(std::isfinite(wind.particleArea) && wind.particleArea >= 0, w + "wind.particleArea", wind.particleArea,
+               "finite and >= 0 (m^2)");
+  requireField(std::isfinite(wind.gustStrength) && wind.gustStrength >= 0, w + "wind.gustStrength", wind.gustStrength,
+               "finite and >= 0 (m/s)");
+  requireField(std::isfinite(wind.gustScale) && wind.gustScale > 0, w + "wind.gustScale", wind.gustScale,
+               "finite and > 0 (m)");
+  requireField(std::isfinite(wind.gustPeriod) && wind.gustPeriod > 0, w + "wind.gustPeriod", wind.gustPeriod,
+               "finite and > 0 (s)");
+  requireField(wind.gustModes >= 1 && wind.gustModes <= 64, w + "wind.gustModes", wind.gustModes, "in [1, 64]");
+  const RepulsionEffect& r = e.repulsion;
+  requireField(std::isfinite(r.radius) && r.radius >= 0, w + "repulsion.radius", r.radius, "finite and >= 0 (m)");
+  requireField(std::isfinite(r.stiffness) && r.stiffness >= 0, w + "repulsion.stiffness", r.stiffness,
+               "finite and >= 0 (N/m)");
+  requireField(!(r.radius > 0) || r.radius >= 1e-9, w + "repulsion.radius", r.radius, "0 (off) or >= 1e-9 m");
 }
 
 template class ForceField<float>;

@@ -18,6 +18,7 @@ class ExplicitEuler final : public Integrator<S> {
         rows(v1, c, b, n) = rows(v0, c, b, n) + h * accel(ax, ay, az, c, n);
       }
     };
+    forces.setStageOffset(0);
     forces.accelerations(x0, v0, makeSink<S>(combine), exec);
     return {1, 1};
   }

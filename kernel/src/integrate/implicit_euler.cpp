@@ -65,6 +65,7 @@ class ImplicitEuler final : public Integrator<S> {
       const auto mh = h * mass.segment(b, m).array();
       for (int c = 0; c < 3; ++c) rows(b_, c, b, m) = f * mh * accel(ax, ay, az, c, m);
     };
+    forces.setStageOffset(0);  // forces and their Jacobian at the start of the step
     forces.accelerations(x0, v0, makeSink<S>(rhsForce), exec);
     ++work.forceEvaluations;
     jacobian_.linearize(x0, h, exec, static_cast<S>(forces.effects().drag));

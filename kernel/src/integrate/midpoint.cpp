@@ -20,6 +20,7 @@ class Midpoint final : public Integrator<S> {
         rows(vm_, c, b, n) = rows(v0, c, b, n) + half * accel(ax, ay, az, c, n);
       }
     };
+    forces.setStageOffset(0);
     forces.accelerations(x0, v0, makeSink<S>(toMidpoint), exec);
     auto fullStep = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
       for (int c = 0; c < 3; ++c) {
@@ -27,6 +28,7 @@ class Midpoint final : public Integrator<S> {
         rows(v1, c, b, n) = rows(v0, c, b, n) + h * accel(ax, ay, az, c, n);
       }
     };
+    forces.setStageOffset(static_cast<double>(half));
     forces.accelerations(xm_, vm_, makeSink<S>(fullStep), exec);
     return {2, 1};
   }

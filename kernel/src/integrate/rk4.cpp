@@ -31,6 +31,7 @@ class Rk4 final : public Integrator<S> {
         rows(va_, c, b, n) = rows(v0, c, b, n) + half * a;
       }
     };
+    forces.setStageOffset(0);
     forces.accelerations(x0, v0, makeSink<S>(stage1), exec);
     // Stages 2 and 3: k = (vs, a(xs, vs)) from buffer `from`; next stage state, at h/2
     // then at h, into buffer `to`.
@@ -46,6 +47,7 @@ class Rk4 final : public Integrator<S> {
       };
       forces.accelerations(xs, vs, makeSink<S>(stage), exec);
     };
+    forces.setStageOffset(static_cast<double>(half));  // stages 2 and 3 are at t + h/2
     middle(xa_, va_, xb_, vb_, half);
     middle(xb_, vb_, xa_, va_, h);
     auto stage4 = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
@@ -54,6 +56,7 @@ class Rk4 final : public Integrator<S> {
         rows(v1, c, b, n) = rows(v0, c, b, n) + sixth * (rows(sumA_, c, b, n) + accel(ax, ay, az, c, n));
       }
     };
+    forces.setStageOffset(static_cast<double>(h));
     forces.accelerations(xa_, va_, makeSink<S>(stage4), exec);
     return {4, 1};
   }

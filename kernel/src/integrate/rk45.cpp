@@ -35,6 +35,8 @@ namespace weft::detail {
 namespace {
 
 constexpr int kStages = 7;
+// Nodes c_j: stage j is evaluated at t + c_j h.
+constexpr double kC[kStages] = {0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1, 1};
 // a[j][l]: stage j + 1 from the slopes of stages 1 .. j (row j, 0-based; row 0 unused).
 constexpr double kA[kStages][kStages - 1] = {
     {0, 0, 0, 0, 0, 0},
@@ -74,7 +76,7 @@ class Rk45 final : public Integrator<S> {
     StepWork work;
     const double H = static_cast<double>(h);
     if (!options_.adaptive) {
-      substep(forces, x0, v0, h, x1, v1, exec, work);
+      substep(forces, x0, v0, h, 0, x1, v1, exec, work);
       work.substeps = 1;
       primed_ = true;
       std::swap(a_[0], a_[kStages - 1]);  // FSAL: A_7 at y1 is the next step's A_1
@@ -95,7 +97,7 @@ class Rk45 final : public Integrator<S> {
       const double used = last ? remaining : hs;
       Vec3Array<S>& xt = xc == &x1 ? xn_ : x1;  // target: whichever of (x1, xn) is not current
       Vec3Array<S>& vt = xc == &x1 ? vn_ : v1;
-      const double err = substep(forces, *xc, *vc, static_cast<S>(used), xt, vt, exec, work);
+      const double err = substep(forces, *xc, *vc, static_cast<S>(used), t, xt, vt, exec, work);
       if (err <= 1) {
         ++work.substeps;
         work.errorEstimate = std::max(work.errorEstimate, err);
@@ -136,8 +138,9 @@ class Rk45 final : public Integrator<S> {
  private:
   /// One Dormand-Prince substep from (x0, v0) to (x1, v1); returns the scaled error (NaN
   /// read as infinite). Uses a_[0] = A_1 if primed_, leaves A_7 in a_[6].
-  double substep(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
-                 Vec3Array<S>& v1, const Executor& exec, StepWork& work) {
+  /// `start` is the substep's offset from the start of the step (for time-dependent forces).
+  double substep(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, double start,
+                 Vec3Array<S>& x1, Vec3Array<S>& v1, const Executor& exec, StepWork& work) {
     const Index n = static_cast<Index>(x0.rows());
     // Velocity slope of stage l (1-based): v0 for stage 1, vs_[l - 2] for 2..6, v1 for 7.
     auto slopeV = [&](int l) -> const Vec3Array<S>& { return l == 1 ? v0 : l == kStages ? v1 : vs_[l - 2]; };
@@ -196,6 +199,7 @@ class Rk45 final : public Integrator<S> {
         for (int c = 0; c < 3; ++c) rows(a_[0], c, b, m) = accel(ax, ay, az, c, m);
         formStage(1, b, m);
       };
+      forces.setStageOffset(start);
       forces.accelerations(x0, v0, makeSink<S>(first), exec);
       ++work.forceEvaluations;
       primed_ = true;  // A_1 stays valid if this substep is rejected: x0 does not change
@@ -210,6 +214,7 @@ class Rk45 final : public Integrator<S> {
         else if (options_.adaptive)
           blockError(b, m);
       };
+      forces.setStageOffset(start + kC[j - 1] * static_cast<double>(h));
       forces.accelerations(xj, vj, makeSink<S>(stage), exec);
       ++work.forceEvaluations;
     }

@@ -18,6 +18,7 @@ class SymplecticEuler final : public Integrator<S> {
         rows(x1, c, b, n) = rows(x0, c, b, n) + h * rows(v1, c, b, n);
       }
     };
+    forces.setStageOffset(0);
     forces.accelerations(x0, v0, makeSink<S>(combine), exec);
     return {1, 1};
   }

@@ -28,6 +28,7 @@ class VelocityVerlet final : public Integrator<S> {
     StepWork work;
     work.substeps = 1;
     if (!primed_) {
+      forces.setStageOffset(0);
       forces.accelerations(x0, v0, a_, exec);  // a0
       ++work.forceEvaluations;
     }
@@ -49,6 +50,7 @@ class VelocityVerlet final : public Integrator<S> {
         rows(a_, c, b, n) = a1;
       }
     };
+    forces.setStageOffset(static_cast<double>(h));
     forces.accelerations(x1, vp_, makeSink<S>(kick), exec);
     ++work.forceEvaluations;
     primed_ = true;

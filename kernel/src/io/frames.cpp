@@ -109,17 +109,10 @@ void validateTopology(const std::string& path, const Vec3Array<S>& x, const Fram
 template <class S>
 FrameTopology frameTopology(const Model<S>& model) {
   FrameTopology topology;
-  const auto& grid = model.grid();
-  if (grid && grid->width >= 1 && grid->height >= 1 &&
-      static_cast<std::int64_t>(grid->width) * grid->height == model.particleCount()) {
-    const Index w = grid->width, h = grid->height;
-    topology.triangles.reserve(2 * static_cast<std::size_t>(w - 1) * static_cast<std::size_t>(h - 1));
-    for (Index r = 0; r + 1 < h; ++r)
-      for (Index c = 0; c + 1 < w; ++c) {
-        const Index a = r * w + c, b = a + 1, d = a + w, e = d + 1;
-        topology.triangles.push_back({a, b, e});
-        topology.triangles.push_back({a, e, d});
-      }
+  const Triangles& tr = model.triangles();
+  if (tr.count() > 0) {
+    topology.triangles.reserve(static_cast<std::size_t>(tr.count()));
+    for (Index t = 0; t < tr.count(); ++t) topology.triangles.push_back({tr.a[t], tr.b[t], tr.c[t]});
     return topology;
   }
   const Springs<S>& springs = model.springs();

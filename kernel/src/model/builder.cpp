@@ -88,6 +88,21 @@ Index ModelBuilder<S>::addSpring(Index a, Index b, const SpringMaterial& materia
 }
 
 template <class S>
+Index ModelBuilder<S>::addTriangle(Index a, Index b, Index c) {
+  const Index t = triangleCount();
+  const char* where = "ModelBuilder::addTriangle";
+  checkParticle(where, a);
+  checkParticle(where, b);
+  checkParticle(where, c);
+  if (a == b || b == c || a == c)
+    throw std::invalid_argument(std::string(where) + ": corners of triangle [" + std::to_string(t) +
+                                "] must be distinct particles, got (" + std::to_string(a) + ", " + std::to_string(b) +
+                                ", " + std::to_string(c) + ")");
+  triangles_.push_back({a, b, c});
+  return t;
+}
+
+template <class S>
 void ModelBuilder<S>::pin(Index i) {
   checkParticle("ModelBuilder::pin", i);
   pinned_[i] = 1;
@@ -142,6 +157,17 @@ ModelAndState<S> ModelBuilder<S>::build() {
     sp.restLength[s] = scalar(rest_[s], "restLength of spring", s);
     sp.stiffness[s] = scalar(stiffness_[s], "stiffness of spring", s);
     sp.damping[s] = scalar(damping_[s], "damping of spring", s);
+  }
+
+  Triangles& tr = model.triangles_;
+  const Index nt = triangleCount();
+  tr.a.resize(nt);
+  tr.b.resize(nt);
+  tr.c.resize(nt);
+  for (Index t = 0; t < nt; ++t) {
+    tr.a[t] = triangles_[t][0];
+    tr.b[t] = triangles_[t][1];
+    tr.c[t] = triangles_[t][2];
   }
 
   if (grid_) {

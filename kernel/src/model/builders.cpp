@@ -59,8 +59,6 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
     throw std::invalid_argument("ClothGridSpec.width must be >= 2, got " + std::to_string(spec.width));
   if (spec.height < 2)
     throw std::invalid_argument("ClothGridSpec.height must be >= 2, got " + std::to_string(spec.height));
-  if (builder.particleCount() != 0)
-    throw std::invalid_argument("addClothGrid: the builder must be empty (the grid layout indexes from particle 0)");
   requirePositive("ClothGridSpec.spacing", spec.spacing);
   requirePositive("ClothGridSpec.totalMass", spec.totalMass);
   const Vec3d u = normalised(spec.rowAxis, "ClothGridSpec.rowAxis");
@@ -72,6 +70,7 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
                                 std::to_string(spec.rowAxis.z) + ") and (" + std::to_string(spec.columnAxis.x) + ", " +
                                 std::to_string(spec.columnAxis.y) + ", " + std::to_string(spec.columnAxis.z) + ")");
   const Index W = spec.width, H = spec.height;
+  const Index first = builder.particleCount();  // the grid layout is recorded only when 0
   const double m = spec.totalMass / static_cast<double>(W * H);
   for (Index r = 0; r < H; ++r)
     for (Index c = 0; c < W; ++c) {
@@ -118,11 +117,18 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
     g.firstSpring = builder.springCount();
     for (Index r = 0; r + f.dr < H; ++r)
       for (Index c = std::max(0, -f.dc); c < std::min(W, W - f.dc); ++c)
-        builder.addSpring(r * W + c, (r + f.dr) * W + c + f.dc, *f.material, f.kind, rest);
+        builder.addSpring(first + r * W + c, first + (r + f.dr) * W + c + f.dc, *f.material, f.kind, rest);
     g.springCount = builder.springCount() - g.firstSpring;
     if (g.springCount > 0) layout.families.push_back(g);
   }
-  builder.setGridLayout(std::move(layout));
+  if (first == 0) builder.setGridLayout(std::move(layout));
+  // Two triangles per cell, normal along rowAxis x columnAxis.
+  for (Index r = 0; r + 1 < H; ++r)
+    for (Index c = 0; c + 1 < W; ++c) {
+      const Index a = first + r * W + c, b = a + 1, d = a + W, e = d + 1;
+      builder.addTriangle(a, b, e);
+      builder.addTriangle(a, e, d);
+    }
 }
 
 template void addRope(ModelBuilder<float>&, const RopeSpec&);

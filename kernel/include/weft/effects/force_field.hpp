@@ -34,10 +34,13 @@
 // All scratch buffers are sized in the constructor; accelerations() never allocates.
 #pragma once
 
+#include <atomic>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "weft/core/parallel.hpp"
+#include "weft/effects/effects.hpp"
 #include "weft/model/model.hpp"
 
 namespace weft {
@@ -69,12 +72,18 @@ AccelerationSink<S> makeSink(F& f) {
           }};
 }
 
-/// Per-particle effects beyond springs and gravity. Each is absent at its default value,
-/// and an absent effect costs nothing: the force pass tests once per block of
-/// kSinkBlock particles whether any is active, never per particle.
-struct ParticleEffects {
-  double drag = 0;  // viscous drag c (N s/m, finite, >= 0): f = -c v on every free particle
-  bool any() const { return drag != 0; }
+namespace detail {
+template <class S>
+class WindForce;
+template <class S>
+class Repulsion;
+}  // namespace detail
+
+/// CPU time spent in each effect's code, summed over threads (s), while profiling is on.
+struct EffectTimes {
+  double drag = 0;
+  double wind = 0;
+  double repulsion = 0;
 };
 
 template <class S>
@@ -84,7 +93,23 @@ class ForceField {
   /// if GridStencil is requested for a model without a grid layout, or for bad effects
   /// (naming the field and the value).
   ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity, const ParticleEffects& effects = {});
+  ~ForceField();
+  ForceField(const ForceField&) = delete;
+  ForceField& operator=(const ForceField&) = delete;
   const ParticleEffects& effects() const { return effects_; }
+
+  /// Time of the evaluations (s), for time-dependent effects (the wind's gusts): the
+  /// Simulation sets the start of each step, an integrator the offset of each stage.
+  void beginStep(double time) { stepStart_ = time_ = time; }
+  void setStageOffset(double offset) { time_ = stepStart_ + offset; }
+  double time() const { return time_; }
+
+  /// Measures the CPU time of each effect (two clock reads per effect and block) while on.
+  void setProfiling(bool on) { profiling_ = on; }
+  EffectTimes effectTimes() const;
+  /// The air velocity of the wind effect at a point and time (m/s); the mean wind is
+  /// returned also when the effect is off.
+  Vec3d airVelocity(const Vec3d& x, double time) const;
 
   /// Accelerations at positions x and velocities v (n x 3), handed to `sink` in blocks.
   void accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
@@ -115,14 +140,22 @@ class ForceField {
   void stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
                      const Executor& exec);
 
+  /// Passes the active effects need before the per-particle pass (wind, repulsion).
+  void prepareEffects(const Vec3Array<S>& x, const Vec3Array<S>& v, const Executor& exec);
   /// Adds the active per-particle effects to a finished block of accelerations.
-  void applyEffects(Index begin, Index count, const Vec3Array<S>& v, S* ax, S* ay, S* az) const;
+  void applyEffects(Index begin, Index count, const Vec3Array<S>& x, const Vec3Array<S>& v, S* ax, S* ay, S* az) const;
 
   const Model<S>* model_;
   ForceStrategy strategy_;
   S gx_, gy_, gz_;
   ParticleEffects effects_;
+  bool anyEffect_ = false;
   S drag_ = 0;  // c, N s/m
+  std::unique_ptr<detail::WindForce<S>> wind_;
+  std::unique_ptr<detail::Repulsion<S>> repulsion_;
+  double stepStart_ = 0, time_ = 0;
+  bool profiling_ = false;
+  mutable std::atomic<std::int64_t> dragNs_{0}, windNs_{0}, repulsionNs_{0};
 
   // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
   // meaning the particle is endpoint b and takes -f).

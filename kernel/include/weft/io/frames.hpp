@@ -3,10 +3,10 @@
 // Design note
 // -----------
 // A frame is the particle positions of one State. What joins them is the FrameTopology,
-// derived once from the Model: a grid model (Model::grid()) gives two triangles per grid
-// cell, wound consistently (counter-clockwise in the (column, row) plane: (a, b, e) and
-// (a, e, d) for the cell a = (r, c), b = (r, c+1), d = (r+1, c), e = (r+1, c+1)); any other
-// model gives its Structural springs as line segments.
+// derived once from the Model: a cloth gives its triangles (Model::triangles(); a grid
+// has two per cell, wound consistently: (a, b, e) and (a, e, d) for the cell a = (r, c),
+// b = (r, c+1), d = (r+1, c), e = (r+1, c+1)); a model without triangles (a rope) gives
+// its Structural springs as line segments.
 //
 // Every writer writes to `path + ".tmp"` and renames it to `path` only once the file is
 // complete and closed, so a failure (disk full, a bad directory, an exception mid-way)
@@ -61,7 +61,7 @@ struct FrameTopology {
   std::vector<std::array<Index, 2>> lines;
 };
 
-/// Two triangles per cell of a grid model; the Structural springs as lines otherwise.
+/// The model's triangles (cloth); the Structural springs as lines when it has none.
 template <class S>
 FrameTopology frameTopology(const Model<S>& model);
 

@@ -9,6 +9,7 @@
 // defaults to the distance between its endpoints at the moment it is added.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,10 @@ class ModelBuilder {
   Index addSpring(Index a, Index b, const SpringMaterial& material, SpringClass kind = SpringClass::Structural,
                   double restLength = -1);
 
+  /// Adds a surface triangle with corners a, b, c (distinct particles; normal along
+  /// (b - a) x (c - a)). Returns its index.
+  Index addTriangle(Index a, Index b, Index c);
+
   /// Pins particle i: its inverse mass becomes 0, so no force moves it.
   void pin(Index i);
 
@@ -44,6 +49,7 @@ class ModelBuilder {
 
   Index particleCount() const { return static_cast<Index>(mass_.size()); }
   Index springCount() const { return static_cast<Index>(springA_.size()); }
+  Index triangleCount() const { return static_cast<Index>(triangles_.size()); }
   Vec3d position(Index i) const;
 
   /// Builds the immutable model and its initial state. The builder is left empty.
@@ -56,6 +62,7 @@ class ModelBuilder {
   std::vector<Index> springA_, springB_;
   std::vector<double> rest_, stiffness_, damping_;
   std::vector<SpringClass> kind_;
+  std::vector<std::array<Index, 3>> triangles_;
   std::optional<GridLayout<S>> grid_;
 };
 

@@ -50,7 +50,10 @@ std::array<Index, kSpringClassCount> expectedGridSpringCounts(const ClothGridSpe
 template <class S>
 void addRope(ModelBuilder<S>& builder, const RopeSpec& spec);
 
-/// Adds the grid's particles and springs to an empty builder and records its layout.
+/// Adds the grid's particles, springs and triangles (particle (r, c) is the builder's
+/// particle count before the call + r * width + c). Into an empty builder it also records
+/// the grid layout, which the GridStencil strategy needs (kept only if nothing else adds
+/// springs).
 template <class S>
 void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec);
 

@@ -4,7 +4,7 @@
 // -----------
 // A Model is the immutable description of a mass-spring system: per-particle masses
 // (inverse mass 0 = pinned), and the springs as structure-of-arrays (endpoints, rest
-// length, stiffness, damping, class). It is built once by a ModelBuilder (which
+// length, stiffness, damping, class) and, for cloth, the surface triangles. It is built once by a ModelBuilder (which
 // validates every input) and never changes afterwards, so any number of States and
 // Simulations may share it read-only across threads.
 //
@@ -49,6 +49,17 @@ struct Springs {
   Index count() const { return static_cast<Index>(a.rows()); }
 };
 
+/// Triangles (the cloth's surface: wind acts on them, frames are written with them), as
+/// structure of arrays; triangle t has corners a[t], b[t], c[t], counter-clockwise seen
+/// from the side its normal (b - a) x (c - a) points to. Ropes have none.
+struct Triangles {
+  IndexArray a;  // (t) first corner
+  IndexArray b;  // (t) second corner
+  IndexArray c;  // (t) third corner
+
+  Index count() const { return static_cast<Index>(a.rows()); }
+};
+
 /// One family of a regular grid's springs: every particle (r, c) with (r + rowOffset,
 /// c + columnOffset) inside the grid is joined to it, with the same parameters.
 template <class S>
@@ -87,6 +98,8 @@ class Model {
   bool isPinned(Index i) const { return inverseMass_[i] == S(0); }
   Index pinnedCount() const;
   const Springs<S>& springs() const { return springs_; }
+  const Triangles& triangles() const { return triangles_; }
+  Index triangleCount() const { return triangles_.count(); }
   /// Number of springs of each class.
   std::array<Index, kSpringClassCount> springCountByClass() const;
   /// Present for models built as a regular grid (enables the GridStencil strategy).
@@ -97,6 +110,7 @@ class Model {
   ScalarArray<S> mass_;
   ScalarArray<S> inverseMass_;
   Springs<S> springs_;
+  Triangles triangles_;
   std::optional<GridLayout<S>> grid_;
 };
 

@@ -1,0 +1,43 @@
+// weft/io/mesh_import.hpp — triangle meshes from files, through assimp (library weft::io).
+//
+// Design note
+// -----------
+// loadMesh reads any format assimp reads (OBJ, 3DS — the original design's format — PLY,
+// STL, glTF, Collada, FBX, ...) into one TriangleMesh: assimp triangulates polygons
+// (aiProcess_Triangulate) and bakes the node transforms into the vertices and flattens
+// the hierarchy (aiProcess_PreTransformVertices, so instanced meshes appear once per
+// instance); weft then concatenates every mesh of the scene and keeps the faces with
+// three corners (points and lines are ignored). assimp is not asked to join identical
+// vertices: welding is cleanMesh's job, so that it can be counted and reported. Note
+// that assimp gives every face corner of an OBJ or 3DS file its own vertex, so the weld
+// count of a file read this way includes those copies, not only the file's own
+// duplicates. Coordinates pass through assimp's single-precision ai_real.
+//
+// Orientation is assimp's, which is weft's (y up, gravity along -y): files in a z-up
+// format are turned by their reader, e.g. the 3DS reader maps a file's (x, y, z) to
+// (x, z, -y). Units are the file's, read as metres (ClothMeshSpec::scale converts).
+//
+// Errors are std::runtime_error messages that start with "mesh file '<path>': ": the
+// file is missing or cannot be opened (with strerror), is a directory, is empty, assimp
+// cannot read it (with assimp's error string), or it has no triangles (with the numbers
+// of points and lines it has instead). loadCleanMesh reports what cleanMesh finds wrong
+// with the file's contents (a coordinate that is not finite, no triangle left) the same
+// way: std::runtime_error, the file name in front of cleanMesh's message. A bad
+// MeshCleanOptions is the caller's error: std::invalid_argument, before the file is read.
+//
+// weft::io is a separate library so that the kernel needs only Eigen and TBB.
+#pragma once
+
+#include <string>
+
+#include "weft/model/triangle_mesh.hpp"
+
+namespace weft {
+
+/// The triangles of every mesh in the file at `path`, vertices as assimp delivers them.
+TriangleMesh loadMesh(const std::string& path);
+
+/// loadMesh, then cleanMesh with `options` (filling *report if it is not null).
+TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options = {}, MeshReport* report = nullptr);
+
+}  // namespace weft

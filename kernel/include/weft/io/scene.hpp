@@ -1,0 +1,114 @@
+// weft/io/scene.hpp — a scene described once: bodies, materials, pins, effects,
+// integrator, time step, duration and output; from C++ or from a JSON file.
+//
+// Design note
+// -----------
+// A SceneSpec is plain data. assembleScene() turns it into a Model, an initial State and
+// the SimulationOptions of exactly the effects the scene lists (an effect it does not list
+// is not constructed, so it costs nothing in the step), resolving pins to particle
+// indices and moving pins to SimulationOptions::kinematicPins. readSceneFile() fills a
+// SceneSpec from JSON (field by field in docs/scenes.md): strict — unknown keys are
+// rejected with the list of allowed keys, wrong types, non-finite numbers and values out
+// of range name the file, the field path (e.g. bodies[0].materials.bend.stiffness) and
+// the value. Every check happens before anything is simulated or written.
+//
+// Built-in scenes (flag, rope, flag-wind, hanging-cloth) are SceneSpecs too
+// (builtinSceneSpec), so `weft run flag-wind` and `weft run tools/scenes/flag-wind.json`
+// go through the same code.
+//
+// Part of the weft::io library (it reads meshes with assimp and JSON with nlohmann-json);
+// the kernel itself (weft::weft) needs neither.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "weft/model/builders.hpp"
+#include "weft/model/cloth_mesh.hpp"
+#include "weft/model/triangle_mesh.hpp"
+#include "weft/scene/simulation.hpp"
+
+namespace weft {
+
+/// A bad scene: the message names the file (or "scene"), the field and the value.
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class Precision { Float, Double };
+
+/// A set of a body's particles, optionally moved along a path (a kinematic pin).
+/// Particles are selected by body-local index and/or by an axis-aligned box (every
+/// particle of the body inside [boxMin, boxMax] at the start).
+struct PinSpec {
+  std::vector<Index> particles;
+  std::optional<std::pair<Vec3d, Vec3d>> box;  // (min, max), m
+  std::optional<KinematicPath> path;           // absent: fixed
+};
+
+enum class BodyKind { Rope, ClothGrid, ClothMesh };
+const char* bodyKindName(BodyKind kind);
+
+struct BodySpec {
+  BodyKind kind = BodyKind::ClothGrid;
+  std::string name;
+  RopeSpec rope;           // kind == Rope
+  ClothGridSpec grid;      // kind == ClothGrid
+  std::string meshFile;    // kind == ClothMesh: any format assimp reads (OBJ, 3DS, PLY, ...)
+  ClothMeshSpec mesh;      // kind == ClothMesh
+  MeshCleanOptions clean;  // kind == ClothMesh
+  std::vector<PinSpec> pins;
+};
+
+struct OutputSpec {
+  std::string directory;       // empty: no frames
+  std::string format = "obj";  // obj | ply | cache
+  std::int64_t every = 1;      // a frame every this many steps (>= 1)
+};
+
+struct SceneSpec {
+  std::string name = "scene";
+  std::vector<BodySpec> bodies;
+  SimulationOptions simulation;  // integrator, dt, threads, strategy, gravity, effects, ...
+  Precision precision = Precision::Double;
+  std::int64_t steps = 0;  // > 0: run this many steps
+  double duration = 0;     // otherwise: ceil(duration / dt) steps (one of the two is required)
+  OutputSpec output;
+};
+
+/// Steps the scene asks for (steps, or duration / dt rounded up).
+std::int64_t sceneStepCount(const SceneSpec& scene);
+
+/// Reads a JSON scene file; mesh paths are relative to the file's directory.
+/// Throws SceneError.
+SceneSpec readSceneFile(const std::string& path);
+/// Parses JSON text; `source` names it in errors, `baseDirectory` resolves mesh paths.
+SceneSpec parseScene(const std::string& text, const std::string& source = "scene",
+                     const std::string& baseDirectory = ".");
+
+/// The built-in scenes: flag, rope, flag-wind, hanging-cloth. size 0 = the default.
+/// Throws SceneError for an unknown name, listing the known ones.
+SceneSpec builtinSceneSpec(const std::string& name, Index size = 0);
+std::vector<std::string> builtinSceneNames();
+
+template <class S>
+struct AssembledScene {
+  ModelAndState<S> built;
+  SimulationOptions options;             // with kinematicPins resolved
+  std::vector<Index> firstParticle;      // per body
+  std::vector<std::string> meshReports;  // one line per mesh body: what cleaning found
+};
+
+/// Builds the model, the state and the options. Throws SceneError (bad values, unreadable
+/// meshes, pins selecting nothing).
+template <class S>
+AssembledScene<S> assembleScene(const SceneSpec& scene);
+
+extern template AssembledScene<float> assembleScene(const SceneSpec&);
+extern template AssembledScene<double> assembleScene(const SceneSpec&);
+
+}  // namespace weft

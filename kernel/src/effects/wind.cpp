@@ -1,0 +1,221 @@
+#include "wind.hpp"
+
+#include <cmath>
+
+namespace weft::detail {
+
+namespace {
+
+// SplitMix64 (Steele, Lea & Flood 2014): a tiny generator with a fixed, documented output
+// sequence, so a seed gives the same gusts everywhere (std:: distributions do not promise
+// that across standard libraries).
+struct SplitMix64 {
+  std::uint64_t state;
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+};
+
+constexpr double kTwoPi = 6.28318530717958647693;
+
+// A uniformly distributed unit vector (Archimedes: z uniform in [-1, 1], azimuth uniform).
+void unitVector(SplitMix64& rng, double& x, double& y, double& z) {
+  z = 2 * rng.uniform() - 1;
+  const double azimuth = kTwoPi * rng.uniform();
+  const double r = std::sqrt(std::max(0.0, 1 - z * z));
+  x = r * portableSine(azimuth + kTwoPi / 4);
+  y = r * portableSine(azimuth);
+}
+
+// u_i = U - v_i + sum_j A_j sin(k_j . x_i + psi_j) over [0, count); pointers offset.
+template <class S>
+[[gnu::noinline]] void relativeAir(Index count, const S* __restrict x, const S* __restrict y, const S* __restrict z,
+                                   const S* __restrict vx, const S* __restrict vy, const S* __restrict vz, S Ux, S Uy,
+                                   S Uz, int modes, const S* kx, const S* ky, const S* kz, const S* psi, const S* Ax,
+                                   const S* Ay, const S* Az, S* __restrict ux, S* __restrict uy, S* __restrict uz) {
+  for (Index i = 0; i < count; ++i) {
+    ux[i] = Ux - vx[i];
+    uy[i] = Uy - vy[i];
+    uz[i] = Uz - vz[i];
+  }
+  for (int j = 0; j < modes; ++j) {
+    const S kxj = kx[j], kyj = ky[j], kzj = kz[j], pj = psi[j], axj = Ax[j], ayj = Ay[j], azj = Az[j];
+    for (Index i = 0; i < count; ++i) {
+      const S s = portableSine(kxj * x[i] + kyj * y[i] + kzj * z[i] + pj);
+      ux[i] += axj * s;
+      uy[i] += ayj * s;
+      uz[i] += azj * s;
+    }
+  }
+}
+
+// A third of the aerodynamic force of triangles [b, e) into f (see effects.hpp):
+// with c = (x_b - x_a) x (x_c - x_a) (|c| = 2 area), n = c / |c|, u_n = u . n,
+//   f_D + f_L = rho |c| / 4 ((C_D + C_L) |u| u_n n - C_L u_n^2 u / |u|).
+template <class S>
+[[gnu::noinline]] void triangleForces(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
+                                      const Index* __restrict C, const S* __restrict x, const S* __restrict y,
+                                      const S* __restrict z, const S* __restrict ux, const S* __restrict uy,
+                                      const S* __restrict uz, S rho, S cd, S cl, S* __restrict fx, S* __restrict fy,
+                                      S* __restrict fz) {
+  const S third = S(1) / S(3);
+  for (Index t = b; t < e; ++t) {
+    const Index i = A[t], j = B[t], k = C[t];
+    const S e1x = x[j] - x[i], e1y = y[j] - y[i], e1z = z[j] - z[i];
+    const S e2x = x[k] - x[i], e2y = y[k] - y[i], e2z = z[k] - z[i];
+    const S cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+    const S u0 = (ux[i] + ux[j] + ux[k]) * third, u1 = (uy[i] + uy[j] + uy[k]) * third,
+            u2 = (uz[i] + uz[j] + uz[k]) * third;
+    const S cc = std::sqrt(cx * cx + cy * cy + cz * cz);
+    const S uu = std::sqrt(u0 * u0 + u1 * u1 + u2 * u2);
+    const S invC = cc > S(0) ? S(1) / cc : S(0);
+    const S invU = uu > S(0) ? S(1) / uu : S(0);
+    const S un = (u0 * cx + u1 * cy + u2 * cz) * invC;
+    const S k3 = rho * cc * third * S(0.25);
+    const S normal = k3 * (cd + cl) * uu * un * invC;  // times c
+    const S along = -k3 * cl * un * un * invU;         // times u
+    fx[t] = normal * cx + along * u0;
+    fy[t] = normal * cy + along * u1;
+    fz[t] = normal * cz + along * u2;
+  }
+}
+
+}  // namespace
+
+GustModes::GustModes(const WindEffect& wind) {
+  if (!(wind.gustStrength > 0)) return;
+  SplitMix64 rng{wind.seed};
+  const int K = wind.gustModes;
+  const double amplitude = wind.gustStrength * std::sqrt(2.0 / K);  // rms of |gust| = gustStrength
+  for (int j = 0; j < K; ++j) {
+    double dx, dy, dz, ex, ey, ez;
+    unitVector(rng, dx, dy, dz);
+    const double wavelength = wind.gustScale * (0.5 + rng.uniform());
+    const double period = wind.gustPeriod * (0.5 + rng.uniform());
+    const double phi = kTwoPi * rng.uniform();
+    unitVector(rng, ex, ey, ez);
+    const double kk = kTwoPi / wavelength;
+    kx.push_back(kk * dx);
+    ky.push_back(kk * dy);
+    kz.push_back(kk * dz);
+    // Frozen into the mean flow: sin(k . (x - U t) - w t + phi).
+    omega.push_back(kTwoPi / period + kk * (dx * wind.velocity.x + dy * wind.velocity.y + dz * wind.velocity.z));
+    phase.push_back(phi);
+    ax.push_back(amplitude * ex);
+    ay.push_back(amplitude * ey);
+    az.push_back(amplitude * ez);
+  }
+}
+
+template <class S>
+WindForce<S>::WindForce(const Model<S>& model, const WindEffect& wind) : model_(&model), wind_(wind), modes_(wind) {
+  const Index n = model.particleCount();
+  const Triangles& tr = model.triangles();
+  const Index nt = tr.count();
+  for (int j = 0; j < modes_.count(); ++j) {
+    mkx_.push_back(static_cast<S>(modes_.kx[j]));
+    mky_.push_back(static_cast<S>(modes_.ky[j]));
+    mkz_.push_back(static_cast<S>(modes_.kz[j]));
+    max_.push_back(static_cast<S>(modes_.ax[j]));
+    may_.push_back(static_cast<S>(modes_.ay[j]));
+    maz_.push_back(static_cast<S>(modes_.az[j]));
+  }
+  psi_.assign(modes_.count(), S(0));
+  relative_.setZero(n, 3);
+  triangleForce_.setZero(nt, 3);
+  // CSR particle -> triangles, each list ascending: a fixed summation order.
+  offsets_.setZero(n + 1);
+  for (Index t = 0; t < nt; ++t) {
+    ++offsets_[tr.a[t] + 1];
+    ++offsets_[tr.b[t] + 1];
+    ++offsets_[tr.c[t] + 1];
+  }
+  for (Index i = 0; i < n; ++i) offsets_[i + 1] += offsets_[i];
+  incidence_.resize(3 * nt);
+  std::vector<Index> fill(offsets_.data(), offsets_.data() + n);
+  for (Index t = 0; t < nt; ++t) {
+    incidence_[fill[tr.a[t]]++] = t;
+    incidence_[fill[tr.b[t]]++] = t;
+    incidence_[fill[tr.c[t]]++] = t;
+  }
+}
+
+template <class S>
+void WindForce<S>::prepare(const Vec3Array<S>& x, const Vec3Array<S>& v, double time, const Executor& exec) {
+  // Phases reduced in double, so a float model keeps its gusts smooth at large times.
+  for (int j = 0; j < modes_.count(); ++j)
+    psi_[j] = static_cast<S>(std::fmod(modes_.phase[j] - modes_.omega[j] * time, kTwoPi));
+  const Index n = model_->particleCount();
+  const S Ux = static_cast<S>(wind_.velocity.x), Uy = static_cast<S>(wind_.velocity.y),
+          Uz = static_cast<S>(wind_.velocity.z);
+  const int K = modes_.count();
+  exec.parallelFor(n, 1024, [&](Index b, Index e) {
+    relativeAir(e - b, x.col(0).data() + b, x.col(1).data() + b, x.col(2).data() + b, v.col(0).data() + b,
+                v.col(1).data() + b, v.col(2).data() + b, Ux, Uy, Uz, K, mkx_.data(), mky_.data(), mkz_.data(),
+                psi_.data(), max_.data(), may_.data(), maz_.data(), relative_.col(0).data() + b,
+                relative_.col(1).data() + b, relative_.col(2).data() + b);
+  });
+  const Triangles& tr = model_->triangles();
+  const S rho = static_cast<S>(wind_.airDensity), cd = static_cast<S>(wind_.dragCoefficient),
+          cl = static_cast<S>(wind_.liftCoefficient);
+  exec.parallelFor(tr.count(), 4096, [&](Index b, Index e) {
+    triangleForces(b, e, tr.a.data(), tr.b.data(), tr.c.data(), x.col(0).data(), x.col(1).data(), x.col(2).data(),
+                   relative_.col(0).data(), relative_.col(1).data(), relative_.col(2).data(), rho, cd, cl,
+                   triangleForce_.col(0).data(), triangleForce_.col(1).data(), triangleForce_.col(2).data());
+  });
+}
+
+template <class S>
+void WindForce<S>::add(Index begin, Index count, S* ax, S* ay, S* az) const {
+  const Index* __restrict off = offsets_.data();
+  const Index* __restrict inc = incidence_.data();
+  const S* __restrict w = model_->inverseMass().data();
+  const S* __restrict Fx = triangleForce_.col(0).data();
+  const S* __restrict Fy = triangleForce_.col(1).data();
+  const S* __restrict Fz = triangleForce_.col(2).data();
+  const S* __restrict ux = relative_.col(0).data();
+  const S* __restrict uy = relative_.col(1).data();
+  const S* __restrict uz = relative_.col(2).data();
+  const S particleDrag = static_cast<S>(0.5 * wind_.airDensity * wind_.dragCoefficient * wind_.particleArea);
+  for (Index t = 0; t < count; ++t) {
+    const Index i = begin + t;
+    S fx = 0, fy = 0, fz = 0;
+    if (off[i + 1] > off[i]) {
+      for (Index k = off[i]; k < off[i + 1]; ++k) {
+        fx += Fx[inc[k]];
+        fy += Fy[inc[k]];
+        fz += Fz[inc[k]];
+      }
+    } else {  // on no triangle: quadratic drag 1/2 rho C_D A_p |u| u
+      const S uu = std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]);
+      fx = particleDrag * uu * ux[i];
+      fy = particleDrag * uu * uy[i];
+      fz = particleDrag * uu * uz[i];
+    }
+    ax[t] += w[i] * fx;
+    ay[t] += w[i] * fy;
+    az[t] += w[i] * fz;
+  }
+}
+
+template <class S>
+Vec3d WindForce<S>::airVelocity(const Vec3d& x, double time) const {
+  Vec3d u = wind_.velocity;
+  for (int j = 0; j < modes_.count(); ++j) {
+    const double s = portableSine(modes_.kx[j] * x.x + modes_.ky[j] * x.y + modes_.kz[j] * x.z +
+                                  std::fmod(modes_.phase[j] - modes_.omega[j] * time, kTwoPi));
+    u.x += modes_.ax[j] * s;
+    u.y += modes_.ay[j] * s;
+    u.z += modes_.az[j] * s;
+  }
+  return u;
+}
+
+template class WindForce<float>;
+template class WindForce<double>;
+
+}  // namespace weft::detail

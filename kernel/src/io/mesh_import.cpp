@@ -1,0 +1,115 @@
+#include "weft/io/mesh_import.hpp"
+
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <assimp/Importer.hpp>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace weft {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+  throw std::runtime_error("mesh file '" + path + "': " + what);
+}
+
+std::string counted(size_t n, const char* one, const char* many) {
+  return std::to_string(n) + " " + (n == 1 ? one : many);
+}
+
+/// Reports a missing, unopenable, unreadable or empty file, or a directory, before assimp
+/// sees it (assimp's own messages for these are "Unable to open file" and "No suitable
+/// reader found", which say less).
+void checkReadable(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a mesh file");
+  errno = 0;
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) fail(path, std::string("cannot open: ") + std::strerror(errno));
+  errno = 0;
+  const int c = std::fgetc(file);
+  const int error = std::ferror(file) ? errno : 0;
+  std::fclose(file);
+  if (error != 0) fail(path, std::string("cannot read: ") + std::strerror(error));
+  if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
+}
+
+}  // namespace
+
+TriangleMesh loadMesh(const std::string& path) {
+  checkReadable(path);
+  Assimp::Importer importer;
+  // A file with bones but no meshes must not turn into assimp's generated bone geometry.
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
+  // No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
+  const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);
+  if (scene == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+
+  constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
+  TriangleMesh mesh;
+  size_t points = 0, lines = 0, polygons = 0;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* in = scene->mMeshes[m];
+    const size_t base = mesh.vertices.size();
+    if (in->mNumVertices > kMaxIndex - base)
+      fail(path, "more than " + std::to_string(kMaxIndex) + " vertices (mesh " + std::to_string(m) + " has " +
+                     std::to_string(in->mNumVertices) + ")");
+    if (in->mNumVertices > 0 && in->mVertices == nullptr)
+      fail(path,
+           "mesh " + std::to_string(m) + " has " + std::to_string(in->mNumVertices) + " vertices but no positions");
+    for (unsigned v = 0; v < in->mNumVertices; ++v)
+      mesh.vertices.push_back({static_cast<double>(in->mVertices[v].x), static_cast<double>(in->mVertices[v].y),
+                               static_cast<double>(in->mVertices[v].z)});
+    for (unsigned f = 0; f < in->mNumFaces; ++f) {
+      const aiFace& face = in->mFaces[f];
+      if (face.mNumIndices == 1) ++points;
+      if (face.mNumIndices == 2) ++lines;
+      if (face.mNumIndices > 3) ++polygons;  // not after aiProcess_Triangulate; counted for the message
+      if (face.mNumIndices != 3) continue;
+      if (mesh.triangles.size() >= kMaxIndex) fail(path, "more than " + std::to_string(kMaxIndex) + " triangles");
+      std::array<Index, 3> tri;
+      for (int k = 0; k < 3; ++k) {
+        const unsigned index = face.mIndices[k];
+        if (index >= in->mNumVertices)
+          fail(path, "mesh " + std::to_string(m) + " face " + std::to_string(f) + " corner " + std::to_string(k) +
+                         ": vertex index must be < " + std::to_string(in->mNumVertices) + ", got " +
+                         std::to_string(index));
+        tri[k] = static_cast<Index>(base + index);
+      }
+      mesh.triangles.push_back(tri);
+    }
+  }
+  if (mesh.triangles.empty()) {
+    std::string found = counted(scene->mNumMeshes, "mesh", "meshes") + " with " + counted(points, "point", "points") +
+                        ", " + counted(lines, "line", "lines");
+    if (polygons > 0) found += ", " + counted(polygons, "polygon", "polygons");
+    fail(path, "no triangles: assimp read " + found + " and " + counted(mesh.vertices.size(), "vertex", "vertices"));
+  }
+  return mesh;
+}
+
+TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options, MeshReport* report) {
+  if (!(std::isfinite(options.weldTolerance) && options.weldTolerance >= 0)) {
+    std::ostringstream msg;
+    msg.precision(17);
+    msg << "loadCleanMesh: MeshCleanOptions.weldTolerance must be finite and >= 0 (m), got " << options.weldTolerance;
+    throw std::invalid_argument(msg.str());
+  }
+  const TriangleMesh raw = loadMesh(path);
+  try {
+    return cleanMesh(raw, options, report);
+  } catch (const std::invalid_argument& e) {
+    fail(path, e.what());
+  }
+}
+
+}  // namespace weft
