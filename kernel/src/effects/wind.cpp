@@ -1,5 +1,6 @@
 #include "wind.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace weft::detail {
@@ -53,9 +54,32 @@ template <class S>
   }
 }
 
-// A third of the aerodynamic force of triangles [b, e) into f (see effects.hpp):
-// with c = (x_b - x_a) x (x_c - x_a) (|c| = 2 area), n = c / |c|, u_n = u . n,
-//   f_D + f_L = rho |c| / 4 ((C_D + C_L) |u| u_n n - C_L u_n^2 u / |u|).
+// A third of the aerodynamic force of the triangle with corners (i, j, k), f (see
+// effects.hpp): with c = (x_j - x_i) x (x_k - x_i) (|c| = 2 area), n = c / |c|, u_n = u . n,
+//   f_D + f_L = rho |c| / 4 ((C_D + C_L) |u| u_n n - C_L u_n^2 u / |u|),
+// u the mean relative air velocity of the corners.
+template <class S>
+inline void triangleForce(S xi, S yi, S zi, S xj, S yj, S zj, S xk, S yk, S zk, S u0, S u1, S u2, S rho, S cd, S cl,
+                          S& fx, S& fy, S& fz) {
+  const S e1x = xj - xi, e1y = yj - yi, e1z = zj - zi;
+  const S e2x = xk - xi, e2y = yk - yi, e2z = zk - zi;
+  const S cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+  // With q = 1 / (|c| |u|) (one square root, one division):
+  //   rho |c| / 12 (C_D + C_L) |u| u_n / |c|  =  rho / 12 (C_D + C_L) (u . c) (u . u) q   (times c)
+  //   rho |c| / 12 C_L u_n^2 / |u|            =  rho / 12 C_L (u . c)^2 q                 (times u)
+  const S uc = u0 * cx + u1 * cy + u2 * cz;
+  const S uu = u0 * u0 + u1 * u1 + u2 * u2;
+  const S cu = (cx * cx + cy * cy + cz * cz) * uu;
+  const S q = cu > S(0) ? S(1) / std::sqrt(cu) : S(0);
+  const S common = rho * (S(1) / S(12)) * q * uc;
+  const S normal = common * (cd + cl) * uu;  // times c
+  const S along = -common * cl * uc;         // times u
+  fx = normal * cx + along * u0;
+  fy = normal * cy + along * u1;
+  fz = normal * cz + along * u2;
+}
+
+// Triangles [b, e) of an index list into f[t].
 template <class S>
 [[gnu::noinline]] void triangleForces(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
                                       const Index* __restrict C, const S* __restrict x, const S* __restrict y,
@@ -65,22 +89,44 @@ template <class S>
   const S third = S(1) / S(3);
   for (Index t = b; t < e; ++t) {
     const Index i = A[t], j = B[t], k = C[t];
-    const S e1x = x[j] - x[i], e1y = y[j] - y[i], e1z = z[j] - z[i];
-    const S e2x = x[k] - x[i], e2y = y[k] - y[i], e2z = z[k] - z[i];
-    const S cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
-    const S u0 = (ux[i] + ux[j] + ux[k]) * third, u1 = (uy[i] + uy[j] + uy[k]) * third,
-            u2 = (uz[i] + uz[j] + uz[k]) * third;
-    const S cc = std::sqrt(cx * cx + cy * cy + cz * cz);
-    const S uu = std::sqrt(u0 * u0 + u1 * u1 + u2 * u2);
-    const S invC = cc > S(0) ? S(1) / cc : S(0);
-    const S invU = uu > S(0) ? S(1) / uu : S(0);
-    const S un = (u0 * cx + u1 * cy + u2 * cz) * invC;
-    const S k3 = rho * cc * third * S(0.25);
-    const S normal = k3 * (cd + cl) * uu * un * invC;  // times c
-    const S along = -k3 * cl * un * un * invU;         // times u
-    fx[t] = normal * cx + along * u0;
-    fy[t] = normal * cy + along * u1;
-    fz[t] = normal * cz + along * u2;
+    triangleForce(x[i], y[i], z[i], x[j], y[j], z[j], x[k], y[k], z[k], (ux[i] + ux[j] + ux[k]) * third,
+                  (uy[i] + uy[j] + uy[k]) * third, (uz[i] + uz[j] + uz[k]) * third, rho, cd, cl, fx[t], fy[t], fz[t]);
+  }
+}
+
+// The two triangles of `count` consecutive grid cells of a row, cell t with top-left
+// particle t (pointers offset to the first): (t, t+1, t+W+1) into f1[t] and (t, t+W+1, t+W)
+// into f2[t]. Contiguous loads only, like the spring stencil.
+template <class S>
+[[gnu::noinline]] void gridTriangleForces(Index count, Index W, const S* __restrict x, const S* __restrict y,
+                                          const S* __restrict z, const S* __restrict ux, const S* __restrict uy,
+                                          const S* __restrict uz, S rho, S cd, S cl, S* __restrict f1x,
+                                          S* __restrict f1y, S* __restrict f1z, S* __restrict f2x, S* __restrict f2y,
+                                          S* __restrict f2z) {
+  const S third = S(1) / S(3);
+  for (Index t = 0; t < count; ++t) {
+    const Index b = t + 1, d = t + W, e = t + W + 1;
+    triangleForce(x[t], y[t], z[t], x[b], y[b], z[b], x[e], y[e], z[e], (ux[t] + ux[b] + ux[e]) * third,
+                  (uy[t] + uy[b] + uy[e]) * third, (uz[t] + uz[b] + uz[e]) * third, rho, cd, cl, f1x[t], f1y[t],
+                  f1z[t]);
+    triangleForce(x[t], y[t], z[t], x[e], y[e], z[e], x[d], y[d], z[d], (ux[t] + ux[e] + ux[d]) * third,
+                  (uy[t] + uy[e] + uy[d]) * third, (uz[t] + uz[e] + uz[d]) * third, rho, cd, cl, f2x[t], f2y[t],
+                  f2z[t]);
+  }
+}
+
+// a_p += w_p (f1[p] + f1[p-1] + f1[p-W-1] + f2[p] + f2[p-W-1] + f2[p-W]) over [0, count): the
+// six triangles around grid particle p (slots of cells that do not exist hold zero).
+// f pointers offset to the first particle's slot, w and a to the first particle.
+template <class S>
+[[gnu::noinline]] void gridGather(Index count, Index W, const S* __restrict w, const S* __restrict f1x,
+                                  const S* __restrict f1y, const S* __restrict f1z, const S* __restrict f2x,
+                                  const S* __restrict f2y, const S* __restrict f2z, S* __restrict ax, S* __restrict ay,
+                                  S* __restrict az) {
+  for (Index p = 0; p < count; ++p) {
+    ax[p] += w[p] * (f1x[p] + f1x[p - 1] + f1x[p - W - 1] + f2x[p] + f2x[p - W - 1] + f2x[p - W]);
+    ay[p] += w[p] * (f1y[p] + f1y[p - 1] + f1y[p - W - 1] + f2y[p] + f2y[p - W - 1] + f2y[p - W]);
+    az[p] += w[p] * (f1z[p] + f1z[p - 1] + f1z[p - W - 1] + f2z[p] + f2z[p - W - 1] + f2z[p - W]);
   }
 }
 
@@ -126,6 +172,26 @@ WindForce<S>::WindForce(const Model<S>& model, const WindEffect& wind) : model_(
   }
   psi_.assign(modes_.count(), S(0));
   relative_.setZero(n, 3);
+  // A cloth grid whose triangles are exactly addClothGrid's (two per cell, in cell order)
+  // takes the stencil path: contiguous loads, no index lists.
+  if (model.grid() && model.grid()->width >= 2 && model.grid()->height >= 2) {
+    const Index W = model.grid()->width, H = model.grid()->height;
+    bool regular = nt == 2 * (W - 1) * (H - 1);
+    for (Index r = 0, t = 0; regular && r + 1 < H; ++r)
+      for (Index c = 0; regular && c + 1 < W; ++c, t += 2) {
+        const Index a = r * W + c;
+        regular = tr.a[t] == a && tr.b[t] == a + 1 && tr.c[t] == a + W + 1 && tr.a[t + 1] == a &&
+                  tr.b[t + 1] == a + W + 1 && tr.c[t + 1] == a + W;
+      }
+    if (regular) {
+      gridWidth_ = W;
+      gridHeight_ = H;
+      // Slot of cell a is a + W + 1, so that the gather's p - W - 1 never goes below 0;
+      // slots of cells that do not exist (last column, last row, the front pad) stay 0.
+      cellForce_.assign(static_cast<size_t>(6) * (n + W + 1), S(0));
+      return;
+    }
+  }
   triangleForce_.setZero(nt, 3);
   // CSR particle -> triangles, each list ascending: a fixed summation order.
   offsets_.setZero(n + 1);
@@ -162,6 +228,20 @@ void WindForce<S>::prepare(const Vec3Array<S>& x, const Vec3Array<S>& v, double 
   const Triangles& tr = model_->triangles();
   const S rho = static_cast<S>(wind_.airDensity), cd = static_cast<S>(wind_.dragCoefficient),
           cl = static_cast<S>(wind_.liftCoefficient);
+  if (gridWidth_ > 0) {
+    const Index W = gridWidth_, stride = n + W + 1;
+    S* f = cellForce_.data() + W + 1;
+    exec.parallelFor(gridHeight_ - 1, std::max<Index>(1, 4096 / W), [&](Index r0, Index r1) {
+      for (Index r = r0; r < r1; ++r) {
+        const Index a = r * W;
+        gridTriangleForces(W - 1, W, x.col(0).data() + a, x.col(1).data() + a, x.col(2).data() + a,
+                           relative_.col(0).data() + a, relative_.col(1).data() + a, relative_.col(2).data() + a, rho,
+                           cd, cl, f + a, f + stride + a, f + 2 * stride + a, f + 3 * stride + a, f + 4 * stride + a,
+                           f + 5 * stride + a);
+      }
+    });
+    return;
+  }
   exec.parallelFor(tr.count(), 4096, [&](Index b, Index e) {
     triangleForces(b, e, tr.a.data(), tr.b.data(), tr.c.data(), x.col(0).data(), x.col(1).data(), x.col(2).data(),
                    relative_.col(0).data(), relative_.col(1).data(), relative_.col(2).data(), rho, cd, cl,
@@ -180,6 +260,13 @@ void WindForce<S>::add(Index begin, Index count, S* ax, S* ay, S* az) const {
   const S* __restrict ux = relative_.col(0).data();
   const S* __restrict uy = relative_.col(1).data();
   const S* __restrict uz = relative_.col(2).data();
+  if (gridWidth_ > 0) {
+    const Index W = gridWidth_, stride = model_->particleCount() + W + 1;
+    const S* f = cellForce_.data() + W + 1 + begin;
+    gridGather(count, W, w + begin, f, f + stride, f + 2 * stride, f + 3 * stride, f + 4 * stride, f + 5 * stride, ax,
+               ay, az);
+    return;
+  }
   const S particleDrag = static_cast<S>(0.5 * wind_.airDensity * wind_.dragCoefficient * wind_.particleArea);
   for (Index t = 0; t < count; ++t) {
     const Index i = begin + t;
