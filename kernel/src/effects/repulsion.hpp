@@ -12,8 +12,8 @@ namespace weft::detail {
 /// A spatial hash of cell size 2r over the particles, rebuilt by prepare() for each
 /// evaluation, and the per-particle sum of the pushes of neighbours closer than r.
 ///
-/// Cells are integer coordinates floor(x / 2r); a cell hashes into one of B buckets (B the
-/// power of two >= 2n); a counting sort in particle order lays the buckets out as one
+/// Cells are integer coordinates floor(x / 2r); a cell hashes (linearly, for locality) into one of
+/// B buckets (B the power of two >= 2n); a counting sort in particle order lays the buckets out as one
 /// array, so each bucket lists its particles in ascending index. A particle visits the 8
 /// cells its ball of radius r overlaps (2 per axis: 8 hash lookups, where cells of size r
 /// would need 27), and in each the bucket's particles whose cell matches (two cells
@@ -35,7 +35,7 @@ class Repulsion {
  private:
   const Model<S>* model_;
   S radius_, stiffness_, inverseCell_;  // 1 / (2r)
-  std::uint32_t mask_;
+  std::uint32_t mask_;  // B - 1
   IndexArray cellX_, cellY_, cellZ_;  // (n) cell coordinates of each particle
   IndexArray bucket_;                 // (n) bucket of each particle
   std::vector<Index> bucketStart_;    // (B + 1) start of each bucket in sorted_
