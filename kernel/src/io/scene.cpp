@@ -1,11 +1,15 @@
 #include "weft/io/scene.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -30,10 +34,30 @@ const char* bodyKindName(BodyKind kind) {
   return "unknown";
 }
 
+namespace {
+
+constexpr std::int64_t kMaxSteps = std::int64_t(1) << 40;
+constexpr std::int64_t kMaxSceneParticles = std::int64_t(1) << 27;  // ropes and grids of a scene, in all
+constexpr std::size_t kMaxSceneFileBytes = std::size_t(16) << 20;   // a scene is a few KB
+// Box pins of bodies up to this size are checked while reading (each a pass over the
+// body's particles), those of larger bodies when the scene is assembled: so that reading
+// a short file stays fast however large the bodies it asks for.
+constexpr Index kMaxScannedParticles = Index(1) << 20;
+constexpr std::size_t kMaxJsonDepth = 32;  // a scene nests 7 levels deep
+
+/// ceil(duration / dt) (a hair less, so that 1 / 0.1 is 10 steps), at least 1, as a double:
+/// no overflow whatever the values.
+double durationStepCount(double duration, double dt) { return std::max(1.0, std::ceil(duration / dt * (1 - 1e-12))); }
+
+}  // namespace
+
 std::int64_t sceneStepCount(const SceneSpec& scene) {
   if (scene.steps > 0) return scene.steps;
-  if (scene.duration > 0 && scene.simulation.dt > 0)
-    return static_cast<std::int64_t>(std::ceil(scene.duration / scene.simulation.dt * (1 - 1e-12)));
+  if (scene.duration > 0 && scene.simulation.dt > 0) {
+    // The reader caps the count at 2^40; a SceneSpec filled in C++ with a larger one saturates.
+    const double n = durationStepCount(scene.duration, scene.simulation.dt);
+    return n < 9.2e18 ? static_cast<std::int64_t>(n) : std::numeric_limits<std::int64_t>::max();
+  }
   return 0;
 }
 
@@ -43,20 +67,132 @@ std::int64_t sceneStepCount(const SceneSpec& scene) {
 
 namespace {
 
+/// A value for a message: compact JSON, ASCII only (so cutting it never splits a
+/// character), at most 60 characters. Integers appear as written in the file, other
+/// numbers as nlohmann prints them (-3.0, 1e-05).
 std::string shortDump(const Json& j) {
-  std::string s = j.dump();
+  std::string s = j.dump(-1, ' ', /*ensure_ascii=*/true);
   if (s.size() > 60) s = s.substr(0, 57) + "...";
   return s;
 }
 
+/// The shortest decimal that reads back as v: "0.1", "1e-09", "200".
+std::string fmt(double v) {
+  char buffer[32];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
+    if (std::strtod(buffer, nullptr) == v) break;
+  }
+  return buffer;
+}
+
+std::string fmt(const Vec3d& v) {
+  std::string s = "[";  // (appended, not "[" + ...: GCC 12 warns about that falsely, -Wrestrict)
+  s += fmt(v.x);
+  s += ", ";
+  s += fmt(v.y);
+  s += ", ";
+  s += fmt(v.z);
+  s += "]";
+  return s;
+}
+
+/// A key as it appears in a field path: as is when it is a plain name, else quoted and
+/// escaped (a key may hold anything, newlines included).
+std::string displayKey(const std::string& key) {
+  const bool plain = !key.empty() && key.size() <= 40 && std::all_of(key.begin(), key.end(), [](unsigned char c) {
+    return std::isalnum(c) || c == '_' || c == '-';
+  });
+  return plain ? key : shortDump(Json(key));
+}
+
 const char* typeName(const Json& j) { return j.type_name(); }
+
+/// Follows nlohmann's parser (as its parse callback) so that a syntax error can name the
+/// field it happened in (the parser itself gives only a line and column, or for a number
+/// that overflows, like 1e999, nothing). Also rejects what the DOM would hide or what
+/// later code should not have to survive: a key given twice in one object (nlohmann keeps
+/// the last silently) and nesting deeper than kMaxJsonDepth.
+class JsonPathTracker {
+ public:
+  explicit JsonPathTracker(const std::string& source) : source_(source) {}
+
+  bool operator()(int /*depth*/, Json::parse_event_t event, Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+      case Json::parse_event_t::array_start:
+        if (stack_.size() >= kMaxJsonDepth)
+          throw SceneError(source_ + ": " + where() + ": nesting deeper than " + std::to_string(kMaxJsonDepth) +
+                           " levels: not a scene");
+        stack_.push_back({event == Json::parse_event_t::array_start, 0, {}, false, {}});
+        break;
+      case Json::parse_event_t::key: {
+        Frame& f = stack_.back();
+        f.key = parsed.get<std::string>();
+        f.keyed = true;
+        if (!f.keys.insert(f.key).second)
+          throw SceneError(source_ + ": " + where() + ": duplicate key: each key may appear once in an object");
+        break;
+      }
+      case Json::parse_event_t::value:
+        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        stack_.pop_back();
+        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+        break;
+    }
+    return true;
+  }
+
+  /// Path of the value being read (or just read): "bodies[0].materials.bend".
+  std::string path() const {
+    std::string p;
+    for (const Frame& f : stack_) {
+      if (f.array)
+        p += "[" + std::to_string(f.index) + "]";
+      else if (f.keyed)
+        p += (p.empty() ? "" : ".") + displayKey(f.key);
+      else
+        break;
+    }
+    return p;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    std::size_t index;  // arrays: the element being read
+    std::string key;    // objects: the member being read
+    bool keyed;
+    std::set<std::string> keys;
+  };
+  std::string where() const {
+    const std::string p = path();
+    return p.empty() ? "(top level)" : p;
+  }
+  const std::string& source_;
+  std::vector<Frame> stack_;
+};
+
+/// v / |v| exactly as weft's builders compute it (addRope, addClothGrid); false when |v|
+/// is 0 or not finite.
+bool normalised(const Vec3d& v, Vec3d& out) {
+  const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+  if (!(std::isfinite(len) && len > 0)) return false;
+  out = {v.x / len, v.y / len, v.z / len};
+  return true;
+}
+
+bool finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
 class Reader {
  public:
   explicit Reader(std::string source) : source_(std::move(source)) {}
 
   [[noreturn]] void fail(const std::string& field, const std::string& what) const {
-    throw SceneError(source_ + ": " + field + ": " + what);
+    throw SceneError(source_ + ": " + (field.empty() ? std::string("(top level)") : field) + ": " + what);
   }
 
   /// Checks that `j` is an object whose keys are all in `allowed`.
@@ -67,7 +203,7 @@ class Reader {
       if (known.count(it.key())) continue;
       std::string list;
       for (const char* k : allowed) list += (list.empty() ? "" : ", ") + std::string(k);
-      fail(join(field, it.key()), "unknown key; allowed keys here: " + list);
+      fail(join(field, displayKey(it.key())), "unknown key; allowed keys here: " + list);
     }
   }
 
@@ -86,12 +222,9 @@ class Reader {
     if (!parent.contains(key)) return fallback;
     const std::string f = join(field, key);
     const double v = number(parent[key], f);
-    if (lowInclusive ? !(v >= low) : !(v > low)) {
-      std::ostringstream msg;
-      msg.precision(17);
-      msg << "must be " << (lowInclusive ? ">= " : "> ") << low << unit << ", got " << v;
-      fail(f, msg.str());
-    }
+    if (lowInclusive ? !(v >= low) : !(v > low))
+      fail(f, std::string("must be ") + (lowInclusive ? ">= " : "> ") + fmt(low) + unit + ", got " +
+                  shortDump(parent[key]));
     return v;
   }
   double anyNumber(const Json& parent, const std::string& field, const char* key, double fallback) const {
@@ -103,12 +236,11 @@ class Reader {
     const Json& j = parent[key];
     const std::string f = join(field, key);
     if (!j.is_number_integer()) fail(f, std::string("must be an integer, got ") + typeName(j) + " " + shortDump(j));
-    const bool isUnsigned = j.is_number_unsigned();
-    if (isUnsigned && j.get<std::uint64_t>() > static_cast<std::uint64_t>(high))
-      fail(f, "must be in [" + std::to_string(low) + ", " + std::to_string(high) + "], got " + shortDump(j));
+    const std::string range = "must be in [" + std::to_string(low) + ", " + std::to_string(high) + "], got ";
+    if (j.is_number_unsigned() && j.get<std::uint64_t>() > static_cast<std::uint64_t>(high))
+      fail(f, range + shortDump(j));
     const std::int64_t v = j.get<std::int64_t>();
-    if (v < low || v > high)
-      fail(f, "must be in [" + std::to_string(low) + ", " + std::to_string(high) + "], got " + std::to_string(v));
+    if (v < low || v > high) fail(f, range + shortDump(j));
     return v;
   }
   bool boolean(const Json& parent, const std::string& field, const char* key, bool fallback) const {
@@ -125,6 +257,14 @@ class Reader {
       fail(join(field, key), std::string("must be a string, got ") + typeName(j) + " " + shortDump(j));
     return j.get<std::string>();
   }
+  /// A file or directory name: a non-empty string without NUL characters.
+  std::string pathString(const Json& parent, const std::string& field, const char* key) const {
+    const std::string v = string(parent, field, key, "");
+    if (v.empty()) fail(join(field, key), "must not be empty");
+    if (v.find('\0') != std::string::npos)
+      fail(join(field, key), "must not contain a NUL character, got " + shortDump(parent[key]));
+    return v;
+  }
   std::string choice(const Json& parent, const std::string& field, const char* key, const std::string& fallback,
                      std::initializer_list<const char*> allowed) const {
     const std::string v = string(parent, field, key, fallback);
@@ -132,7 +272,7 @@ class Reader {
       if (v == a) return v;
     std::string list;
     for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    fail(join(field, key), "must be one of " + list + "; got '" + v + "'");
+    fail(join(field, key), "must be one of " + list + "; got " + shortDump(Json(v)));
   }
   Vec3d vector(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
     if (!parent.contains(key)) return fallback;
@@ -141,6 +281,14 @@ class Reader {
     if (!j.is_array() || j.size() != 3)
       fail(f, std::string("must be an array of 3 numbers [x, y, z], got ") + typeName(j) + " " + shortDump(j));
     return {number(j[0], f + "[0]"), number(j[1], f + "[1]"), number(j[2], f + "[2]")};
+  }
+  /// A direction: a vector of finite, non-zero length (normalised on use).
+  Vec3d direction(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
+    const Vec3d v = vector(parent, field, key, fallback);
+    Vec3d unit;
+    if (parent.contains(key) && !normalised(v, unit))
+      fail(join(field, key), "must be a direction (a vector of finite non-zero length), got " + shortDump(parent[key]));
+    return v;
   }
   SpringMaterial material(const Json& parent, const std::string& field, const char* key,
                           const SpringMaterial& fallback) const {
@@ -169,66 +317,216 @@ KinematicPath readPath(const Reader& r, const Json& j, const std::string& f) {
   if (j.contains("end")) {
     p.endTime = r.number(j["end"], Reader::join(f, "end"));
     if (!(p.endTime >= p.startTime))
-      r.fail(Reader::join(f, "end"),
-             "must be >= start (" + std::to_string(p.startTime) + " s), got " + std::to_string(p.endTime));
+      r.fail(Reader::join(f, "end"), "must be >= start (" + fmt(p.startTime) + " s), got " + shortDump(j["end"]));
   }
-  if (p.angularVelocity != 0 && !(p.axis.x != 0 || p.axis.y != 0 || p.axis.z != 0))
-    r.fail(Reader::join(f, "axis"), "must be non-zero when angular_velocity is not 0");
+  // The simulation normalises the axis: its length must be finite and non-zero (an
+  // infinite one would normalise to 0 and shrink the pinned set instead of turning it).
+  Vec3d unit;
+  if (p.angularVelocity != 0 && !normalised(p.axis, unit))
+    r.fail(Reader::join(f, "axis"),
+           "must be a vector of finite non-zero length when angular_velocity is not 0, got " + fmt(p.axis));
   return p;
 }
 
-std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::string& field) {
+/// Body-local particle positions at the start, for checking pins while reading: the exact
+/// expressions of addRope / addClothGrid, so a box selects here what it selects when the
+/// scene is assembled.
+struct BodyGeometry {
+  Index count = 0;
+  std::function<Vec3d(Index)> position;
+};
+
+std::optional<BodyGeometry> ropeGeometry(const RopeSpec& s) {
+  Vec3d d;
+  if (!normalised(s.direction, d)) return std::nullopt;
+  const double step = s.length / static_cast<double>(s.particleCount - 1);
+  return BodyGeometry{s.particleCount, [s, d, step](Index i) {
+                        const double t = step * static_cast<double>(i);
+                        return Vec3d{s.origin.x + t * d.x, s.origin.y + t * d.y, s.origin.z + t * d.z};
+                      }};
+}
+
+std::optional<BodyGeometry> gridGeometry(const ClothGridSpec& s) {
+  Vec3d u, w;
+  if (!normalised(s.rowAxis, u) || !normalised(s.columnAxis, w)) return std::nullopt;
+  return BodyGeometry{
+      s.width * s.height, [s, u, w](Index i) {
+        const Index r = i / s.width, c = i % s.width;
+        const double a = s.spacing * static_cast<double>(c), b = s.spacing * static_cast<double>(r);
+        return Vec3d{s.origin.x + a * u.x + b * w.x, s.origin.y + a * u.y + b * w.y, s.origin.z + a * u.z + b * w.z};
+      }};
+}
+
+bool inBox(const Vec3d& p, const std::pair<Vec3d, Vec3d>& box) {
+  const auto& [lo, hi] = box;
+  return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z;
+}
+
+/// The body-local particles a pin selects: its indices and every particle inside its box
+/// (`position` gives body-local positions), sorted, each once.
+std::vector<Index> pinSelection(const PinSpec& pin, Index count, const std::function<Vec3d(Index)>& position) {
+  std::vector<Index> selected = pin.particles;
+  if (pin.box)
+    for (Index i = 0; i < count; ++i)
+      if (inBox(position(i), *pin.box)) selected.push_back(i);
+  std::sort(selected.begin(), selected.end());
+  selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
+  return selected;
+}
+
+/// A particle in the selections of two kinematic pins (the simulation would refuse it).
+struct MovedTwice {
+  size_t pin;      // the later pin
+  Index particle;  // body-local
+  size_t earlier;  // the pin that already moves it
+  std::string what() const {
+    return "particle " + std::to_string(particle) + " is already moved by pins[" + std::to_string(earlier) +
+           "]: a particle can follow one path only";
+  }
+};
+/// `selections[q]` is pins[q]'s (see pinSelection).
+std::optional<MovedTwice> movedTwice(const std::vector<PinSpec>& pins,
+                                     const std::vector<std::vector<Index>>& selections) {
+  std::vector<std::pair<Index, size_t>> moved;  // (particle, pin)
+  for (size_t q = 0; q < pins.size(); ++q)
+    if (pins[q].path)
+      for (const Index i : selections[q]) moved.emplace_back(i, q);
+  std::sort(moved.begin(), moved.end());
+  for (size_t m = 1; m < moved.size(); ++m)
+    if (moved[m].first == moved[m - 1].first) return MovedTwice{moved[m].second, moved[m].first, moved[m - 1].second};
+  return std::nullopt;
+}
+
+std::string particleRange(Index count) {
+  return "the body has " + std::to_string(count) + " particles, 0 .. " + std::to_string(count - 1);
+}
+
+/// Reads `pins`, one PinSpec per element (so pins[k] of the file is pins[k] of the spec,
+/// and of assembly's messages). With the body's geometry (ropes and grids), indices are
+/// checked here too, and so are boxes and kinematic pins that would move a particle twice
+/// (for bodies up to kMaxScannedParticles); the rest is checked when assembled.
+std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::string& field,
+                              const BodyGeometry* geometry) {
   std::vector<PinSpec> pins;
   if (!body.contains("pins")) return pins;
   const std::string f = Reader::join(field, "pins");
   const Json& j = body["pins"];
   if (!j.is_array()) r.fail(f, std::string("must be an array, got ") + typeName(j) + " " + shortDump(j));
-  PinSpec loose;  // bare indices: one fixed pin set
+  const auto index = [&](const Json& v, const std::string& fv) {
+    if (!v.is_number_integer() || v.get<std::int64_t>() < 0 || v.get<std::int64_t>() > (1ll << 31) - 1 ||
+        (v.is_number_unsigned() && v.get<std::uint64_t>() > (1ull << 31) - 1))
+      r.fail(fv, "must be a particle index (an integer >= 0), got " + shortDump(v));
+    const Index i = static_cast<Index>(v.get<std::int64_t>());
+    if (geometry && i >= geometry->count)
+      r.fail(fv, "particle " + std::to_string(i) + " is not in the body (" + particleRange(geometry->count) + ")");
+    return i;
+  };
   for (size_t k = 0; k < j.size(); ++k) {
     const std::string fk = f + "[" + std::to_string(k) + "]";
     const Json& e = j[k];
-    if (e.is_number()) {
-      if (!e.is_number_integer() || e.get<std::int64_t>() < 0 || e.get<std::int64_t>() > (1ll << 31) - 1)
-        r.fail(fk, "a pinned particle must be a non-negative integer index, got " + shortDump(e));
-      loose.particles.push_back(static_cast<Index>(e.get<std::int64_t>()));
+    PinSpec p;
+    if (e.is_number()) {  // a bare index: that particle, fixed
+      p.particles.push_back(index(e, fk));
+      pins.push_back(std::move(p));
       continue;
     }
+    if (!e.is_object())
+      r.fail(fk, std::string("must be a particle index or an object with particles, box, path; got ") + typeName(e) +
+                     " " + shortDump(e));
     r.object(e, fk, {"particles", "box", "path"});
-    PinSpec p;
     if (e.contains("particles")) {
       const Json& list = e["particles"];
-      if (!list.is_array())
-        r.fail(fk + ".particles", std::string("must be an array of indices, got ") + shortDump(list));
-      for (size_t q = 0; q < list.size(); ++q) {
-        const Json& v = list[q];
-        if (!v.is_number_integer() || v.get<std::int64_t>() < 0 || v.get<std::int64_t>() > (1ll << 31) - 1)
-          r.fail(fk + ".particles[" + std::to_string(q) + "]",
-                 "must be a non-negative integer index, got " + shortDump(v));
-        p.particles.push_back(static_cast<Index>(v.get<std::int64_t>()));
-      }
+      const std::string fp = fk + ".particles";
+      if (!list.is_array() || list.empty())
+        r.fail(fp, std::string("must be a non-empty array of particle indices, got ") + typeName(list) + " " +
+                       shortDump(list));
+      for (size_t q = 0; q < list.size(); ++q)
+        p.particles.push_back(index(list[q], fp + "[" + std::to_string(q) + "]"));
     }
     if (e.contains("box")) {
       const std::string fb = fk + ".box";
       r.object(e["box"], fb, {"min", "max"});
-      if (!e["box"].contains("min") || !e["box"].contains("max")) r.fail(fb, "needs both min and max");
+      if (!e["box"].contains("min") || !e["box"].contains("max"))
+        r.fail(fb, "needs both min and max, got " + shortDump(e["box"]));
       const Vec3d lo = r.vector(e["box"], fb, "min", {}), hi = r.vector(e["box"], fb, "max", {});
-      if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) r.fail(fb, "min must be <= max in every coordinate");
+      if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z))
+        r.fail(fb, "min must be <= max in every coordinate, got min " + fmt(lo) + ", max " + fmt(hi));
       p.box = std::make_pair(lo, hi);
+      if (geometry && geometry->count <= kMaxScannedParticles) {
+        bool any = false;
+        for (Index i = 0; i < geometry->count && !any; ++i) any = inBox(geometry->position(i), *p.box);
+        if (!any)
+          r.fail(fb, "selects no particle of the body: none is inside min " + fmt(lo) + ", max " + fmt(hi) +
+                         " at the start (the body spans " + fmt(geometry->position(0)) + " .. " +
+                         fmt(geometry->position(geometry->count - 1)) + ")");
+      }
     }
-    if (!e.contains("particles") && !e.contains("box")) r.fail(fk, "needs particles or box");
+    if (!e.contains("particles") && !e.contains("box")) r.fail(fk, "needs particles or box, got " + shortDump(e));
     if (e.contains("path")) p.path = readPath(r, e["path"], fk + ".path");
     pins.push_back(std::move(p));
   }
-  if (!loose.particles.empty()) pins.insert(pins.begin(), std::move(loose));
+  if (geometry && geometry->count <= kMaxScannedParticles) {
+    std::vector<std::vector<Index>> selections(pins.size());
+    for (size_t q = 0; q < pins.size(); ++q)
+      if (pins[q].path) selections[q] = pinSelection(pins[q], geometry->count, geometry->position);
+    if (const auto twice = movedTwice(pins, selections))
+      r.fail(f + "[" + std::to_string(twice->pin) + "]", twice->what());
+  }
   return pins;
+}
+
+/// Total mass from total_mass or particle_mass (the other one's key), checked to give
+/// particles of a finite, non-zero mass.
+double readMass(const Reader& r, const Json& j, const std::string& f, double fallback, Index particles) {
+  double total = r.number(j, f, "total_mass", fallback, 0, false, " kg");
+  if (j.contains("particle_mass")) {
+    if (j.contains("total_mass"))
+      r.fail(f, "give total_mass or particle_mass, not both (total_mass " + shortDump(j["total_mass"]) +
+                    ", particle_mass " + shortDump(j["particle_mass"]) + ")");
+    total = r.number(j, f, "particle_mass", 0, 0, false, " kg") * static_cast<double>(particles);
+    if (!std::isfinite(total))
+      r.fail(Reader::join(f, "particle_mass"), "times " + std::to_string(particles) +
+                                                   " particles is not a finite mass, got " +
+                                                   shortDump(j["particle_mass"]));
+  } else if (!(total / static_cast<double>(particles) > 0)) {
+    r.fail(Reader::join(f, "total_mass"),
+           "spread over " + std::to_string(particles) + " particles gives particles of mass 0, got " + fmt(total));
+  }
+  return total;
+}
+
+/// The mesh file must exist and be a readable regular file; checked here so that the
+/// message names the scene file and the field. (Its contents are read when the scene is
+/// assembled.)
+void checkMeshFile(const Reader& r, const Json& j, const std::string& f, const std::string& path) {
+  std::error_code error;
+  const std::filesystem::file_status status = std::filesystem::status(path, error);
+  std::string problem;
+  if (status.type() == std::filesystem::file_type::not_found)
+    problem = "no such file";
+  else if (error)
+    problem = error.message();
+  else if (std::filesystem::is_directory(status))
+    problem = "is a directory";
+  else if (!std::filesystem::is_regular_file(status))
+    problem = "is not a regular file";
+  else if (!std::ifstream(path, std::ios::binary))
+    problem = std::strerror(errno);
+  if (problem.empty()) return;
+  const std::string given = j["mesh"].get<std::string>();
+  r.fail(Reader::join(f, "mesh"), "cannot read the mesh file " + shortDump(j["mesh"]) +
+                                      (given != path ? " (" + shortDump(Json(path)) + ")" : std::string()) + ": " +
+                                      problem);
 }
 
 BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory) {
   if (!j.is_object()) r.fail(f, std::string("must be an object, got ") + typeName(j) + " " + shortDump(j));
   BodySpec b;
+  if (!j.contains("type")) r.fail(Reader::join(f, "type"), "is required: rope, cloth_grid or cloth_mesh");
   const std::string type = r.choice(j, f, "type", "", {"rope", "cloth_grid", "cloth_mesh"});
   b.name = r.string(j, f, "name", type);
   const std::string fm = Reader::join(f, "materials");
+  std::optional<BodyGeometry> geometry;
   if (type == "rope") {
     b.kind = BodyKind::Rope;
     r.object(j, f,
@@ -237,19 +535,19 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     RopeSpec& s = b.rope;
     s.particleCount = static_cast<Index>(r.integer(j, f, "particles", s.particleCount, 2, 1 << 24));
     s.origin = r.vector(j, f, "origin", s.origin);
-    s.direction = r.vector(j, f, "direction", s.direction);
+    s.direction = r.direction(j, f, "direction", s.direction);
     s.length = r.number(j, f, "length", s.length, 0, false, " m");
-    s.totalMass = r.number(j, f, "total_mass", s.totalMass, 0, false, " kg");
-    if (j.contains("particle_mass")) {
-      if (j.contains("total_mass")) r.fail(f, "give total_mass or particle_mass, not both");
-      s.totalMass = r.number(j, f, "particle_mass", 0, 0, false, " kg") * s.particleCount;
-    }
+    s.totalMass = readMass(r, j, f, s.totalMass, s.particleCount);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
     if (j.contains("materials")) {
       r.object(j["materials"], fm, {"structural", "bend"});
       s.structural = r.material(j["materials"], fm, "structural", s.structural);
       s.bend = r.material(j["materials"], fm, "bend", s.bend);
     }
+    geometry = ropeGeometry(s);
+    if (!finite(geometry->position(s.particleCount - 1)))
+      r.fail(f, "the rope's far end " + fmt(geometry->position(s.particleCount - 1)) +
+                    " is not finite: origin, direction or length is too large");
   } else if (type == "cloth_grid") {
     b.kind = BodyKind::ClothGrid;
     r.object(j, f,
@@ -262,14 +560,20 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
       r.fail(f, "width x height must be <= 2^26 particles, got " + std::to_string(s.width) + " x " +
                     std::to_string(s.height));
     s.origin = r.vector(j, f, "origin", s.origin);
-    s.rowAxis = r.vector(j, f, "row_axis", s.rowAxis);
-    s.columnAxis = r.vector(j, f, "column_axis", s.columnAxis);
-    s.spacing = r.number(j, f, "spacing", 1.0 / (s.width - 1), 0, false, " m");
-    s.totalMass = r.number(j, f, "total_mass", s.totalMass, 0, false, " kg");
-    if (j.contains("particle_mass")) {
-      if (j.contains("total_mass")) r.fail(f, "give total_mass or particle_mass, not both");
-      s.totalMass = r.number(j, f, "particle_mass", 0, 0, false, " kg") * s.width * s.height;
+    s.rowAxis = r.direction(j, f, "row_axis", s.rowAxis);
+    s.columnAxis = r.direction(j, f, "column_axis", s.columnAxis);
+    {
+      // The test addClothGrid applies, on the normalised axes.
+      Vec3d u, w;
+      normalised(s.rowAxis, u);
+      normalised(s.columnAxis, w);
+      const double cx = u.y * w.z - u.z * w.y, cy = u.z * w.x - u.x * w.z, cz = u.x * w.y - u.y * w.x;
+      if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6))
+        r.fail(Reader::join(f, "column_axis"),
+               "must not be parallel to row_axis, got " + fmt(s.columnAxis) + " and row_axis " + fmt(s.rowAxis));
     }
+    s.spacing = r.number(j, f, "spacing", 1.0 / (s.width - 1), 0, false, " m");
+    s.totalMass = readMass(r, j, f, s.totalMass, s.width * s.height);
     s.shearSprings = r.boolean(j, f, "shear_springs", s.shearSprings);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
     if (j.contains("materials")) {
@@ -278,24 +582,30 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
       s.shear = r.material(j["materials"], fm, "shear", s.shear);
       s.bend = r.material(j["materials"], fm, "bend", s.bend);
     }
+    geometry = gridGeometry(s);
+    for (const Index corner : {s.width - 1, s.width * (s.height - 1), s.width * s.height - 1})
+      if (!finite(geometry->position(corner)))
+        r.fail(f, "the grid's corner " + fmt(geometry->position(corner)) +
+                      " is not finite: origin, spacing or size is too large");
   } else {
     b.kind = BodyKind::ClothMesh;
     r.object(j, f,
              {"type", "name", "mesh", "weld_tolerance", "scale", "translate", "total_mass", "areal_density",
               "materials", "bend_springs", "pins"});
     if (!j.contains("mesh")) r.fail(Reader::join(f, "mesh"), "is required: the path of the mesh file");
-    const std::string mesh = r.string(j, f, "mesh", "");
-    if (mesh.empty()) r.fail(Reader::join(f, "mesh"), "must not be empty");
+    const std::string mesh = r.pathString(j, f, "mesh");
     const std::filesystem::path p(mesh);
     b.meshFile = p.is_absolute() ? mesh : (std::filesystem::path(baseDirectory) / p).lexically_normal().string();
+    checkMeshFile(r, j, f, b.meshFile);
     b.clean.weldTolerance = r.number(j, f, "weld_tolerance", b.clean.weldTolerance, 0, true, " m");
     ClothMeshSpec& s = b.mesh;
     s.scale = r.number(j, f, "scale", s.scale, 0, false, "");
     s.translate = r.vector(j, f, "translate", s.translate);
+    if (j.contains("total_mass") && j.contains("areal_density"))
+      r.fail(f, "give total_mass or areal_density, not both (total_mass " + shortDump(j["total_mass"]) +
+                    ", areal_density " + shortDump(j["areal_density"]) + ")");
     s.totalMass = r.number(j, f, "total_mass", s.totalMass, 0, false, " kg");
     s.arealDensity = r.number(j, f, "areal_density", s.arealDensity, 0, false, " kg/m^2");
-    if (j.contains("total_mass") && j.contains("areal_density"))
-      r.fail(f, "give total_mass or areal_density, not both");
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
     if (j.contains("materials")) {
       r.object(j["materials"], fm, {"structural", "bend"});
@@ -303,7 +613,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
       s.bend = r.material(j["materials"], fm, "bend", s.bend);
     }
   }
-  b.pins = readPins(r, j, f);
+  b.pins = readPins(r, j, f, geometry ? &*geometry : nullptr);
   return b;
 }
 
@@ -335,25 +645,71 @@ ParticleEffects readEffects(const Reader& r, const Json& j, const std::string& f
     const std::string fr = Reader::join(f, "repulsion");
     const Json& rep = j["repulsion"];
     r.object(rep, fr, {"radius", "stiffness"});
-    if (!rep.contains("radius") || !rep.contains("stiffness")) r.fail(fr, "needs radius and stiffness");
+    for (const char* key : {"radius", "stiffness"})
+      if (!rep.contains(key))
+        r.fail(Reader::join(fr, key),
+               "is required: repulsion needs radius (m, >= 1e-9) and stiffness (N/m, > 0), got " + shortDump(rep));
     e.repulsion.radius = r.number(rep, fr, "radius", 0, 1e-9, true, " m");
     e.repulsion.stiffness = r.number(rep, fr, "stiffness", 0, 0, false, " N/m");
   }
   return e;
 }
 
+/// Scene-wide values the step converts to S must be within S's range (1e39 is a double
+/// but no float): checked while reading for the file's precision, and when assembling for
+/// the one asked for, rather than left to become infinities in the step or an exception of
+/// the simulation's. `fail(field, what)` does not return.
+template <class S>
+void requireScalarRange(const SimulationOptions& o,
+                        const std::function<void(const std::string&, const std::string&)>& fail) {
+  const double big = static_cast<double>(std::numeric_limits<S>::max());
+  const auto check = [&](const char* field, double value) {
+    if (!(std::abs(value) <= big))
+      fail(field, std::string("must be within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
+                      " precision (|value| <= " + fmt(big) + "), got " + fmt(value));
+  };
+  check("gravity[0]", o.gravity.x);
+  check("gravity[1]", o.gravity.y);
+  check("gravity[2]", o.gravity.z);
+  check("effects.drag", o.effects.drag);
+  if (o.effects.wind.enabled) {
+    const WindEffect& w = o.effects.wind;
+    check("effects.wind.velocity[0]", w.velocity.x);
+    check("effects.wind.velocity[1]", w.velocity.y);
+    check("effects.wind.velocity[2]", w.velocity.z);
+    check("effects.wind.air_density", w.airDensity);
+    check("effects.wind.drag_coefficient", w.dragCoefficient);
+    check("effects.wind.lift_coefficient", w.liftCoefficient);
+    check("effects.wind.particle_area", w.particleArea);
+    check("effects.wind.gust_strength", w.gustStrength);
+  }
+  if (o.effects.repulsion.enabled()) {
+    check("effects.repulsion.radius", o.effects.repulsion.radius);
+    check("effects.repulsion.stiffness", o.effects.repulsion.stiffness);
+  }
+}
+
+/// "1 body", "3 bodies", ...
+std::string bodiesText(const SceneSpec& scene) {
+  return std::to_string(scene.bodies.size()) + (scene.bodies.size() == 1 ? " body" : " bodies") +
+         (scene.bodies.empty() ? std::string() : std::string(", the first a ") + bodyKindName(scene.bodies[0].kind));
+}
+
 }  // namespace
 
 SceneSpec parseScene(const std::string& text, const std::string& source, const std::string& baseDirectory) {
   Json root;
+  JsonPathTracker tracker(source);
   try {
-    root = Json::parse(text);
+    root = Json::parse(
+        text, [&tracker](int depth, Json::parse_event_t event, Json& parsed) { return tracker(depth, event, parsed); });
   } catch (const Json::exception& e) {
-    // nlohmann's message carries the line/column or byte of the problem.
-    throw SceneError(source + ": malformed JSON: " + e.what());
+    // nlohmann's message carries the line/column or byte of the problem, the tracker the field.
+    const std::string at = tracker.path();
+    throw SceneError(source + ": " + (at.empty() ? std::string() : at + ": ") + "malformed JSON: " + e.what());
   }
   const Reader r(source);
-  r.object(root, "(top level)",
+  r.object(root, "",
            {"name", "bodies", "integrator", "dt", "steps", "duration", "precision", "threads", "force_strategy",
             "gravity", "effects", "integration", "stability", "output"});
   SceneSpec scene;
@@ -362,8 +718,18 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   const Json& bodies = root["bodies"];
   if (!bodies.is_array() || bodies.empty())
     r.fail("bodies", std::string("must be a non-empty array, got ") + typeName(bodies) + " " + shortDump(bodies));
-  for (size_t k = 0; k < bodies.size(); ++k)
-    scene.bodies.push_back(readBody(r, bodies[k], "bodies[" + std::to_string(k) + "]", baseDirectory));
+  std::int64_t particles = 0;
+  for (size_t k = 0; k < bodies.size(); ++k) {
+    const std::string f = "bodies[" + std::to_string(k) + "]";
+    scene.bodies.push_back(readBody(r, bodies[k], f, baseDirectory));
+    const BodySpec& b = scene.bodies.back();
+    particles += b.kind == BodyKind::Rope        ? b.rope.particleCount
+                 : b.kind == BodyKind::ClothGrid ? static_cast<std::int64_t>(b.grid.width) * b.grid.height
+                                                 : 0;
+    if (particles > kMaxSceneParticles)
+      r.fail(f, "the scene's ropes and grids have more than 2^27 particles in all (" + std::to_string(particles) +
+                    " up to this body)");
+  }
 
   SimulationOptions& o = scene.simulation;
   const std::string integrator =
@@ -371,18 +737,24 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   o.integrator = parseIntegrator(integrator);
   if (!root.contains("dt")) r.fail("dt", "is required: the fixed time step in seconds (> 0)");
   o.dt = r.number(root, "", "dt", 0, 0, false, " s");
-  scene.steps = r.integer(root, "", "steps", 0, 1, std::int64_t(1) << 40);
-  scene.duration = r.number(root, "", "duration", 0, 0, false, " s");
-  if (root.contains("steps") && root.contains("duration")) r.fail("steps", "give steps or duration, not both");
+  if (root.contains("steps") && root.contains("duration"))
+    r.fail("steps", "give steps or duration, not both (steps " + shortDump(root["steps"]) + ", duration " +
+                        shortDump(root["duration"]) + ")");
   if (!root.contains("steps") && !root.contains("duration"))
     r.fail("steps", "is required (or duration): how long to run");
-  if (sceneStepCount(scene) > (std::int64_t(1) << 40))
-    r.fail("duration", "asks for more than 2^40 steps at dt = " + std::to_string(o.dt) + " s");
+  scene.steps = r.integer(root, "", "steps", 0, 1, kMaxSteps);
+  scene.duration = r.number(root, "", "duration", 0, 0, false, " s");
+  if (scene.duration > 0 && !(durationStepCount(scene.duration, o.dt) <= static_cast<double>(kMaxSteps)))
+    r.fail("duration",
+           "asks for more than 2^40 steps (" + shortDump(root["duration"]) + " s at dt = " + fmt(o.dt) + " s)");
   scene.precision =
       r.choice(root, "", "precision", "double", {"float", "double"}) == "float" ? Precision::Float : Precision::Double;
   o.threads = static_cast<int>(r.integer(root, "", "threads", 0, 0, 1024));
   o.forceStrategy = parseForceStrategy(
       r.choice(root, "", "force_strategy", "auto", {"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
+  if (o.forceStrategy == ForceStrategy::GridStencil &&
+      !(scene.bodies.size() == 1 && scene.bodies[0].kind == BodyKind::ClothGrid))
+    r.fail("force_strategy", "grid-stencil needs a scene of a single cloth_grid body, got " + bodiesText(scene));
   o.gravity = r.vector(root, "", "gravity", o.gravity);
   if (root.contains("effects")) o.effects = readEffects(r, root["effects"], "effects");
   if (root.contains("integration")) {
@@ -397,7 +769,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.maxSubsteps = static_cast<Index>(r.integer(j, f, "max_substeps", io.maxSubsteps, 1, 1 << 30));
     io.linearTolerance = r.number(j, f, "cg_tolerance", io.linearTolerance, 0, true, "");
     if (!(io.linearTolerance < 1))
-      r.fail("integration.cg_tolerance", "must be < 1, got " + std::to_string(io.linearTolerance));
+      r.fail("integration.cg_tolerance", "must be < 1, got " + shortDump(j["cg_tolerance"]));
     io.maxLinearIterations =
         static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
   }
@@ -407,11 +779,12 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     o.stability.enabled = r.boolean(j, "stability", "enabled", o.stability.enabled);
     o.stability.maxStretch = r.anyNumber(j, "stability", "max_stretch", o.stability.maxStretch);
   }
+  if (scene.precision == Precision::Float)
+    requireScalarRange<float>(o, [&r](const std::string& field, const std::string& what) { r.fail(field, what); });
   if (root.contains("output")) {
     const Json& j = root["output"];
     r.object(j, "output", {"directory", "format", "every"});
-    scene.output.directory = r.string(j, "output", "directory", "");
-    if (j.contains("directory") && scene.output.directory.empty()) r.fail("output.directory", "must not be empty");
+    if (j.contains("directory")) scene.output.directory = r.pathString(j, "output", "directory");
     scene.output.format = r.choice(j, "output", "format", "obj", {"obj", "ply", "cache"});
     scene.output.every = r.integer(j, "output", "every", 1, 1, std::numeric_limits<std::int64_t>::max());
   }
@@ -423,12 +796,20 @@ SceneSpec readSceneFile(const std::string& path) {
   if (std::filesystem::is_directory(path, error)) throw SceneError(path + ": is a directory, not a scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(path + ": cannot open the scene file: " + std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
+  // Read in chunks up to a cap: the path may be a pipe (weft run <(...)) or, by mistake,
+  // something endless like /dev/zero.
+  std::string text;
+  std::vector<char> buffer(1 << 16);
+  while (in.read(buffer.data(), static_cast<std::streamsize>(buffer.size())) || in.gcount() > 0) {
+    text.append(buffer.data(), static_cast<size_t>(in.gcount()));
+    if (text.size() > kMaxSceneFileBytes)
+      throw SceneError(path + ": is larger than " + std::to_string(kMaxSceneFileBytes >> 20) +
+                       " MiB: not a scene file");
+  }
   if (in.bad()) throw SceneError(path + ": cannot read the scene file");
   const std::filesystem::path p(path);
   const std::string base = p.has_parent_path() ? p.parent_path().string() : std::string(".");
-  return parseScene(text.str(), path, base);
+  return parseScene(text, path, base);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -514,13 +895,26 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
 template <class S>
 AssembledScene<S> assembleScene(const SceneSpec& scene) {
   if (scene.bodies.empty()) throw SceneError(scene.name + ": bodies: the scene has no bodies");
+  requireScalarRange<S>(scene.simulation, [&](const std::string& field, const std::string& what) {
+    throw SceneError(scene.name + ": " + field + ": " + what);
+  });
   AssembledScene<S> out;
   ModelBuilder<S> builder;
   for (size_t k = 0; k < scene.bodies.size(); ++k) {
     const BodySpec& b = scene.bodies[k];
-    const std::string field = scene.name + ": bodies[" + std::to_string(k) + "] (" + b.name + ")";
+    const std::string field = scene.name + ": bodies[" + std::to_string(k) + "]";
     const Index first = builder.particleCount();
     out.firstParticle.push_back(first);
+    TriangleMesh mesh;
+    if (b.kind == BodyKind::ClothMesh) {
+      MeshReport report;
+      try {
+        mesh = loadCleanMesh(b.meshFile, b.clean, &report);  // its messages name the file
+      } catch (const std::exception& e) {
+        throw SceneError(field + ".mesh: " + e.what());
+      }
+      out.meshReports.push_back(b.meshFile + ": " + report.summary());
+    }
     try {
       switch (b.kind) {
         case BodyKind::Rope:
@@ -529,53 +923,46 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
         case BodyKind::ClothGrid:
           addClothGrid(builder, b.grid);
           break;
-        case BodyKind::ClothMesh: {
-          MeshReport report;
-          const TriangleMesh mesh = loadCleanMesh(b.meshFile, b.clean, &report);
+        case BodyKind::ClothMesh:
           addClothMesh(builder, mesh, b.mesh);
-          out.meshReports.push_back(b.meshFile + ": " + report.summary());
           break;
-        }
       }
     } catch (const std::exception& e) {
-      throw SceneError(field + ": " + e.what());
+      throw SceneError(field + " (" + b.name + "): " + e.what());
     }
     const Index count = builder.particleCount() - first;
+    const auto position = [&builder, first](Index i) { return builder.position(first + i); };
+    std::vector<std::vector<Index>> selections;
     for (size_t q = 0; q < b.pins.size(); ++q) {
       const PinSpec& pin = b.pins[q];
-      const std::string pf = field + ": pins[" + std::to_string(q) + "]";
-      std::vector<Index> selected;
-      for (const Index i : pin.particles) {
+      const std::string pf = field + ".pins[" + std::to_string(q) + "]";
+      for (const Index i : pin.particles)
         if (i < 0 || i >= count)
-          throw SceneError(pf + ": particle " + std::to_string(i) + " is not in the body (it has " +
-                           std::to_string(count) + " particles)");
-        selected.push_back(first + i);
-      }
-      if (pin.box) {
-        const auto& [lo, hi] = *pin.box;
-        for (Index i = first; i < first + count; ++i) {
-          const Vec3d p = builder.position(i);
-          if (p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z)
-            selected.push_back(i);
-        }
-        if (selected.size() == pin.particles.size()) throw SceneError(pf + ": box selects no particle of the body");
-      }
-      std::sort(selected.begin(), selected.end());
-      selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
-      for (const Index i : selected) builder.pin(i);
+          throw SceneError(pf + ": particle " + std::to_string(i) + " is not in the body (" + particleRange(count) +
+                           ")");
+      if (pin.box && pinSelection(PinSpec{{}, pin.box, std::nullopt}, count, position).empty())
+        throw SceneError(pf + ".box: selects no particle of the body: none is inside min " + fmt(pin.box->first) +
+                         ", max " + fmt(pin.box->second) + " at the start");
+      selections.push_back(pinSelection(pin, count, position));
+      for (const Index i : selections.back()) builder.pin(first + i);
       if (pin.path) {
-        KinematicPins moved;
-        moved.particles = selected;
-        moved.path = *pin.path;
-        out.options.kinematicPins.push_back(std::move(moved));
+        KinematicPins kinematic;
+        for (const Index i : selections.back()) kinematic.particles.push_back(first + i);
+        kinematic.path = *pin.path;
+        out.options.kinematicPins.push_back(std::move(kinematic));
       }
     }
+    if (const auto twice = movedTwice(b.pins, selections))
+      throw SceneError(field + ".pins[" + std::to_string(twice->pin) + "]: " + twice->what());
   }
   try {
     out.built = builder.build();
   } catch (const std::exception& e) {
     throw SceneError(scene.name + ": " + e.what());
   }
+  if (scene.simulation.forceStrategy == ForceStrategy::GridStencil && !out.built.model.grid())
+    throw SceneError(scene.name + ": force_strategy: grid-stencil needs a scene of a single cloth_grid body, got " +
+                     bodiesText(scene));
   std::vector<KinematicPins> pins = std::move(out.options.kinematicPins);
   out.options = scene.simulation;  // its own kinematicPins (C++ scenes, global indices) first
   for (KinematicPins& p : pins) out.options.kinematicPins.push_back(std::move(p));

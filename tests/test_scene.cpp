@@ -1,0 +1,776 @@
+// tests/test_scene.cpp — scene files (weft::io): the examples in tools/scenes/ parse,
+// assemble and run, and use every key the reader accepts; the built-in flag-wind and
+// hanging-cloth scenes and their JSON twins step bit for bit alike; parseScene puts every
+// field where it belongs; bad input of every kind is a SceneError naming the source, the
+// field and the value; and `weft run` on a bad file exits 2 with that message on stderr
+// and writes no output.
+//
+// WEFT_SOURCE_DIR (the repository, for tools/scenes/) and, when the command line is
+// built, WEFT_CLI_PATH (the `weft` binary) come from CMake.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "weft/io/scene.hpp"
+#include "weft/weft.hpp"
+
+#ifndef WEFT_SOURCE_DIR
+#error "WEFT_SOURCE_DIR must name the repository"
+#endif
+
+namespace weft::test {
+namespace {
+
+using ::testing::HasSubstr;
+
+const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
+const std::vector<std::string> kExamples = {"rope", "flag-wind", "cloth-mesh", "hanging-cloth"};
+
+std::string examplePath(const std::string& name) { return kScenes + "/" + name + ".json"; }
+
+/// A file under the test's temporary directory with `text` in it; returns its path.
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + "weft_test_scene_" + name;
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+/// The message of the SceneError that `f` throws ("" and a failure if it throws none).
+template <class F>
+std::string sceneError(F&& f) {
+  try {
+    f();
+  } catch (const SceneError& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "threw something else than a SceneError: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "accepted";
+  return {};
+}
+
+// ---------------------------------------------------------------------------------------
+// The examples
+// ---------------------------------------------------------------------------------------
+
+TEST(SceneExamples, TheDirectoryHoldsExactlyTheTestedExamples) {
+  std::set<std::string> found;
+  for (const auto& entry : std::filesystem::directory_iterator(kScenes))
+    if (entry.path().extension() == ".json") found.insert(entry.path().stem().string());
+  EXPECT_EQ(found, std::set<std::string>(kExamples.begin(), kExamples.end()))
+      << "a new example in tools/scenes/ belongs in kExamples (so that it is run)";
+}
+
+template <class S>
+void parseAssembleAndRun(const std::string& name) {
+  SCOPED_TRACE(name + " in " + (sizeof(S) == 4 ? "float" : "double"));
+  const SceneSpec spec = readSceneFile(examplePath(name));
+  EXPECT_EQ(spec.name, name);
+  EXPECT_GT(sceneStepCount(spec), 5);
+  AssembledScene<S> scene = assembleScene<S>(spec);
+  scene.options.threads = 2;
+  Simulation<S> sim(std::move(scene.built), scene.options);
+  const StepStatus status = sim.run(5);
+  EXPECT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(sim.stepCount(), 5);
+  EXPECT_TRUE(sim.state().x.allFinite());
+}
+
+class SceneExample : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(SceneExample, ParsesAssemblesAndRunsFiveStepsInFloatAndDouble) {
+  parseAssembleAndRun<float>(GetParam());
+  parseAssembleAndRun<double>(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, SceneExample, ::testing::ValuesIn(kExamples), [](const auto& info) {
+  std::string name = info.param;
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+});
+
+/// The keys the reader allows in the object that `json` puts an unknown key "zz_unknown"
+/// into, read from its error message ("allowed keys here: a, b, c").
+std::set<std::string> allowedKeys(const std::string& json) {
+  const std::string message = sceneError([&] { parseScene(json, "keys.json", kScenes); });
+  const std::string marker = "allowed keys here: ";
+  const size_t at = message.find(marker);
+  EXPECT_NE(at, std::string::npos) << json << "\n" << message;
+  EXPECT_THAT(message, HasSubstr("zz_unknown")) << json;
+  std::set<std::string> keys;
+  std::istringstream list(at == std::string::npos ? std::string() : message.substr(at + marker.size()));
+  for (std::string key; std::getline(list, key, ',');) keys.insert(key.substr(key.find_first_not_of(' ')));
+  return keys;
+}
+
+/// The keys the examples use in each kind of object.
+std::map<std::string, std::set<std::string>> exampleKeys() {
+  std::map<std::string, std::set<std::string>> used;
+  const auto keys = [&](const std::string& where, const nlohmann::json& j) {
+    for (auto it = j.begin(); it != j.end(); ++it) used[where].insert(it.key());
+  };
+  for (const std::string& name : kExamples) {
+    std::ifstream in(examplePath(name));
+    const nlohmann::json root = nlohmann::json::parse(in);
+    keys("top", root);
+    for (const char* section : {"effects", "integration", "stability", "output"})
+      if (root.contains(section)) keys(section, root[section]);
+    if (root.contains("effects"))
+      for (const char* effect : {"wind", "repulsion"})
+        if (root["effects"].contains(effect)) keys(effect, root["effects"][effect]);
+    for (const auto& body : root["bodies"]) {
+      const std::string type = body["type"];
+      keys(type, body);
+      if (body.contains("materials")) {
+        keys(type + ".materials", body["materials"]);
+        for (const auto& m : body["materials"]) keys("material", m);
+      }
+      for (const auto& pin : body.value("pins", nlohmann::json::array())) {
+        if (!pin.is_object()) {
+          used["pin"].insert("(index)");
+          continue;
+        }
+        keys("pin", pin);
+        if (pin.contains("box")) keys("box", pin["box"]);
+        if (pin.contains("path")) keys("path", pin["path"]);
+      }
+    }
+  }
+  return used;
+}
+
+TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
+  // The reader's own lists (an unknown key in each kind of object), against the keys the
+  // examples use there.
+  const std::string tail = R"(, "dt": 0.001, "steps": 1})";
+  const auto body = [&](const std::string& fields) { return R"({"bodies": [{)" + fields + "}]" + tail; };
+  const std::string mesh = R"("type": "cloth_mesh", "mesh": "meshes/cloth.obj")";
+  const std::map<std::string, std::string> probes = {
+      {"top", R"({"zz_unknown": 1, "bodies": [{"type": "rope"}])" + tail},
+      {"rope", body(R"("type": "rope", "zz_unknown": 1)")},
+      {"cloth_grid", body(R"("type": "cloth_grid", "zz_unknown": 1)")},
+      {"cloth_mesh", body(mesh + R"(, "zz_unknown": 1)")},
+      {"rope.materials", body(R"("type": "rope", "materials": {"zz_unknown": 1})")},
+      {"cloth_grid.materials", body(R"("type": "cloth_grid", "materials": {"zz_unknown": 1})")},
+      {"cloth_mesh.materials", body(mesh + R"(, "materials": {"zz_unknown": 1})")},
+      {"material", body(R"("type": "rope", "materials": {"bend": {"zz_unknown": 1}})")},
+      {"pin", body(R"("type": "rope", "pins": [{"zz_unknown": 1}])")},
+      {"box", body(R"("type": "rope", "pins": [{"box": {"zz_unknown": 1}}])")},
+      {"path", body(R"("type": "rope", "pins": [{"particles": [0], "path": {"zz_unknown": 1}}])")},
+      {"effects", R"({"bodies": [{"type": "rope"}], "effects": {"zz_unknown": 1})" + tail},
+      {"wind", R"({"bodies": [{"type": "rope"}], "effects": {"wind": {"zz_unknown": 1}})" + tail},
+      {"repulsion", R"({"bodies": [{"type": "rope"}], "effects": {"repulsion": {"zz_unknown": 1}})" + tail},
+      {"integration", R"({"bodies": [{"type": "rope"}], "integration": {"zz_unknown": 1})" + tail},
+      {"stability", R"({"bodies": [{"type": "rope"}], "stability": {"zz_unknown": 1})" + tail},
+      {"output", R"({"bodies": [{"type": "rope"}], "output": {"zz_unknown": 1})" + tail},
+  };
+  auto used = exampleKeys();
+  EXPECT_TRUE(used["pin"].count("(index)")) << "no example pins a particle by a bare index";
+  for (const auto& [where, json] : probes) {
+    SCOPED_TRACE(where);
+    const std::set<std::string> allowed = allowedKeys(json);
+    EXPECT_FALSE(allowed.empty());
+    for (const std::string& key : allowed) {
+      // total_mass / particle_mass (and areal_density) exclude each other in one body:
+      // each must appear in some body of the kind or, for the mass keys, of any kind.
+      bool found = used[where].count(key) > 0;
+      if (!found && (key == "total_mass" || key == "particle_mass"))
+        for (const char* kind : {"rope", "cloth_grid", "cloth_mesh"}) found = found || used[kind].count(key) > 0;
+      EXPECT_TRUE(found) << "no example uses " << where << " key '" << key << "'";
+    }
+  }
+}
+
+template <class S>
+void expectTwins(const SceneSpec& file, const SceneSpec& builtin) {
+  SCOPED_TRACE(sizeof(S) == 4 ? "float" : "double");
+  EXPECT_EQ(sceneStepCount(file), sceneStepCount(builtin));
+  AssembledScene<S> a = assembleScene<S>(file), b = assembleScene<S>(builtin);
+  a.options.threads = b.options.threads = 2;
+  Simulation<S> simA(std::move(a.built), a.options), simB(std::move(b.built), b.options);
+  ASSERT_EQ(simA.model().particleCount(), simB.model().particleCount());
+  EXPECT_EQ(simA.model().pinnedCount(), simB.model().pinnedCount());
+  EXPECT_EQ(simA.model().springCount(), simB.model().springCount());
+  EXPECT_EQ(simA.options().kinematicPins.size(), simB.options().kinematicPins.size());
+  ASSERT_TRUE(simA.run(4).ok());
+  ASSERT_TRUE(simB.run(4).ok());
+  EXPECT_TRUE(simA.state().x == simB.state().x) << "positions differ";
+  EXPECT_TRUE(simA.state().v == simB.state().v) << "velocities differ";
+  EXPECT_EQ(stateHash(simA.state()), stateHash(simB.state()));
+}
+
+TEST(SceneExamples, FlagWindFileStepsLikeTheBuiltinSceneBitForBit) {
+  const SceneSpec file = readSceneFile(examplePath("flag-wind"));
+  const SceneSpec builtin = builtinSceneSpec("flag-wind", 64);
+  expectTwins<float>(file, builtin);
+  expectTwins<double>(file, builtin);
+}
+
+TEST(SceneExamples, HangingClothFileStepsLikeTheBuiltinSceneOfSize33BitForBit) {
+  const SceneSpec file = readSceneFile(examplePath("hanging-cloth"));
+  const SceneSpec builtin = builtinSceneSpec("hanging-cloth", 33);
+  ASSERT_EQ(file.bodies.size(), 1u);
+  EXPECT_EQ(file.bodies[0].grid.spacing, builtin.bodies[0].grid.spacing);
+  EXPECT_EQ(file.simulation.effects.repulsion.radius, builtin.simulation.effects.repulsion.radius);
+  expectTwins<float>(file, builtin);
+  expectTwins<double>(file, builtin);
+}
+
+// ---------------------------------------------------------------------------------------
+// Every field lands where it belongs
+// ---------------------------------------------------------------------------------------
+
+TEST(SceneReader, EveryFieldLandsInItsMember) {
+  const std::string json = R"({
+    "name": "everything",
+    "bodies": [
+      {"type": "rope", "name": "line", "particles": 10, "origin": [1, 2, 3], "direction": [0, 0, 2],
+       "length": 2.5, "particle_mass": 0.01, "bend_springs": false,
+       "materials": {"structural": {"stiffness": 700, "damping": 0.07}, "bend": {"stiffness": 7, "damping": 0.007}},
+       "pins": [9, {"particles": [0, 1], "path": {"velocity": [0.1, 0.2, 0.3], "angular_velocity": 0.5,
+                                                  "axis": [1, 0, 0], "center": [1, 2, 3], "start": 0.25, "end": 0.75}}]},
+      {"type": "cloth_grid", "name": "sheet", "width": 5, "height": 4, "origin": [0, 3, 0], "row_axis": [0, 0, 1],
+       "column_axis": [0, -1, 0], "spacing": 0.1, "total_mass": 0.2, "shear_springs": false, "bend_springs": false,
+       "materials": {"structural": {"stiffness": 11, "damping": 0.11}, "shear": {"stiffness": 12, "damping": 0.12},
+                     "bend": {"stiffness": 13, "damping": 0.13}},
+       "pins": [{"box": {"min": [-1, 2.95, -1], "max": [1, 3.05, 1]}}]},
+      {"type": "cloth_mesh", "name": "disc", "mesh": "meshes/cloth.obj", "weld_tolerance": 0.001, "scale": 0.02,
+       "translate": [4, 5, 6], "areal_density": 0.3, "bend_springs": false,
+       "materials": {"structural": {"stiffness": 21, "damping": 0.21}, "bend": {"stiffness": 22, "damping": 0.22}}}
+    ],
+    "integrator": "implicit", "dt": 0.004, "steps": 77, "precision": "float", "threads": 3,
+    "force_strategy": "coloured", "gravity": [0, 0, -1.5],
+    "effects": {"drag": 0.02,
+                "wind": {"velocity": [1, 2, 3], "air_density": 1.1, "drag_coefficient": 0.9, "lift_coefficient": 0.4,
+                         "particle_area": 0.002, "gust_strength": 1.5, "gust_scale": 2.5, "gust_period": 0.6,
+                         "gust_modes": 5, "seed": 42},
+                "repulsion": {"radius": 0.01, "stiffness": 300}},
+    "integration": {"adaptive": false, "rtol": 1e-5, "atol": 1e-7, "min_substep": 1e-10, "max_substeps": 500,
+                    "cg_tolerance": 1e-4, "cg_max_iterations": 50},
+    "stability": {"enabled": false, "max_stretch": 4},
+    "output": {"directory": "frames-out", "format": "ply", "every": 3}
+  })";
+  const SceneSpec s = parseScene(json, "everything.json", kScenes);
+  EXPECT_EQ(s.name, "everything");
+  ASSERT_EQ(s.bodies.size(), 3u);
+
+  const BodySpec& rope = s.bodies[0];
+  EXPECT_EQ(rope.kind, BodyKind::Rope);
+  EXPECT_EQ(rope.name, "line");
+  EXPECT_EQ(rope.rope.particleCount, 10);
+  EXPECT_EQ(rope.rope.origin.z, 3);
+  EXPECT_EQ(rope.rope.direction.z, 2);
+  EXPECT_EQ(rope.rope.length, 2.5);
+  EXPECT_DOUBLE_EQ(rope.rope.totalMass, 0.1);  // particle_mass x particles
+  EXPECT_FALSE(rope.rope.bendSprings);
+  EXPECT_EQ(rope.rope.structural.stiffness, 700);
+  EXPECT_EQ(rope.rope.structural.damping, 0.07);
+  EXPECT_EQ(rope.rope.bend.stiffness, 7);
+  EXPECT_EQ(rope.rope.bend.damping, 0.007);
+  ASSERT_EQ(rope.pins.size(), 2u);  // one PinSpec per element of pins, in order
+  EXPECT_EQ(rope.pins[0].particles, std::vector<Index>{9});
+  EXPECT_FALSE(rope.pins[0].path);
+  EXPECT_EQ(rope.pins[1].particles, (std::vector<Index>{0, 1}));
+  ASSERT_TRUE(rope.pins[1].path);
+  const KinematicPath& path = *rope.pins[1].path;
+  EXPECT_EQ(path.velocity.y, 0.2);
+  EXPECT_EQ(path.angularVelocity, 0.5);
+  EXPECT_EQ(path.axis.x, 1);
+  EXPECT_EQ(path.center.y, 2);
+  EXPECT_EQ(path.startTime, 0.25);
+  EXPECT_EQ(path.endTime, 0.75);
+
+  const BodySpec& grid = s.bodies[1];
+  EXPECT_EQ(grid.kind, BodyKind::ClothGrid);
+  EXPECT_EQ(grid.name, "sheet");
+  EXPECT_EQ(grid.grid.width, 5);
+  EXPECT_EQ(grid.grid.height, 4);
+  EXPECT_EQ(grid.grid.origin.y, 3);
+  EXPECT_EQ(grid.grid.rowAxis.z, 1);
+  EXPECT_EQ(grid.grid.columnAxis.y, -1);
+  EXPECT_EQ(grid.grid.spacing, 0.1);
+  EXPECT_EQ(grid.grid.totalMass, 0.2);
+  EXPECT_FALSE(grid.grid.shearSprings);
+  EXPECT_FALSE(grid.grid.bendSprings);
+  EXPECT_EQ(grid.grid.structural.stiffness, 11);
+  EXPECT_EQ(grid.grid.shear.damping, 0.12);
+  EXPECT_EQ(grid.grid.bend.stiffness, 13);
+  EXPECT_EQ(grid.grid.bend.damping, 0.13);
+  ASSERT_EQ(grid.pins.size(), 1u);
+  ASSERT_TRUE(grid.pins[0].box);
+  EXPECT_EQ(grid.pins[0].box->first.y, 2.95);
+  EXPECT_EQ(grid.pins[0].box->second.y, 3.05);
+  EXPECT_TRUE(grid.pins[0].particles.empty());
+
+  const BodySpec& mesh = s.bodies[2];
+  EXPECT_EQ(mesh.kind, BodyKind::ClothMesh);
+  EXPECT_EQ(mesh.name, "disc");
+  EXPECT_EQ(mesh.meshFile, (std::filesystem::path(kScenes) / "meshes/cloth.obj").lexically_normal().string())
+      << "a relative mesh path is relative to the scene's directory";
+  EXPECT_EQ(mesh.clean.weldTolerance, 0.001);
+  EXPECT_EQ(mesh.mesh.scale, 0.02);
+  EXPECT_EQ(mesh.mesh.translate.z, 6);
+  EXPECT_EQ(mesh.mesh.arealDensity, 0.3);
+  EXPECT_FALSE(mesh.mesh.bendSprings);
+  EXPECT_EQ(mesh.mesh.structural.damping, 0.21);
+  EXPECT_EQ(mesh.mesh.bend.stiffness, 22);
+  EXPECT_TRUE(mesh.pins.empty());
+
+  const SimulationOptions& o = s.simulation;
+  EXPECT_EQ(o.integrator, IntegratorKind::ImplicitEuler);
+  EXPECT_EQ(o.dt, 0.004);
+  EXPECT_EQ(s.steps, 77);
+  EXPECT_EQ(sceneStepCount(s), 77);
+  EXPECT_EQ(s.precision, Precision::Float);
+  EXPECT_EQ(o.threads, 3);
+  EXPECT_EQ(o.forceStrategy, ForceStrategy::Coloured);
+  EXPECT_EQ(o.gravity.z, -1.5);
+  EXPECT_EQ(o.effects.drag, 0.02);
+  const WindEffect& w = o.effects.wind;
+  EXPECT_TRUE(w.enabled);
+  EXPECT_EQ(w.velocity.z, 3);
+  EXPECT_EQ(w.airDensity, 1.1);
+  EXPECT_EQ(w.dragCoefficient, 0.9);
+  EXPECT_EQ(w.liftCoefficient, 0.4);
+  EXPECT_EQ(w.particleArea, 0.002);
+  EXPECT_EQ(w.gustStrength, 1.5);
+  EXPECT_EQ(w.gustScale, 2.5);
+  EXPECT_EQ(w.gustPeriod, 0.6);
+  EXPECT_EQ(w.gustModes, 5);
+  EXPECT_EQ(w.seed, 42u);
+  EXPECT_EQ(o.effects.repulsion.radius, 0.01);
+  EXPECT_EQ(o.effects.repulsion.stiffness, 300);
+  const IntegratorOptions& io = o.integration;
+  EXPECT_FALSE(io.adaptive);
+  EXPECT_EQ(io.relativeTolerance, 1e-5);
+  EXPECT_EQ(io.absoluteTolerance, 1e-7);
+  EXPECT_EQ(io.minSubstep, 1e-10);
+  EXPECT_EQ(io.maxSubsteps, 500);
+  EXPECT_EQ(io.linearTolerance, 1e-4);
+  EXPECT_EQ(io.maxLinearIterations, 50);
+  EXPECT_FALSE(o.stability.enabled);
+  EXPECT_EQ(o.stability.maxStretch, 4);
+  EXPECT_EQ(s.output.directory, "frames-out");
+  EXPECT_EQ(s.output.format, "ply");
+  EXPECT_EQ(s.output.every, 3);
+
+  // It assembles: the pins resolve (the grid's box is its top row), the path becomes a
+  // kinematic pin with global indices.
+  const AssembledScene<double> a = assembleScene<double>(s);
+  EXPECT_EQ(a.firstParticle, (std::vector<Index>{0, 10, 30}));
+  EXPECT_EQ(a.built.model.pinnedCount(), 3 + 5);
+  ASSERT_EQ(a.options.kinematicPins.size(), 1u);
+  EXPECT_EQ(a.options.kinematicPins[0].particles, (std::vector<Index>{0, 1}));
+  EXPECT_EQ(a.meshReports.size(), 1u);
+}
+
+TEST(SceneReader, DefaultsAndDuration) {
+  const SceneSpec s = parseScene(R"({"bodies": [{"type": "cloth_grid"}], "dt": 0.1, "duration": 1})");
+  EXPECT_EQ(s.name, "scene");
+  EXPECT_EQ(s.steps, 0);
+  EXPECT_EQ(s.duration, 1);
+  EXPECT_EQ(sceneStepCount(s), 10) << "ceil(1 / 0.1), not 11 from rounding";
+  EXPECT_EQ(s.simulation.integrator, IntegratorKind::Rk4);
+  EXPECT_EQ(s.precision, Precision::Double);
+  EXPECT_EQ(s.simulation.threads, 0);
+  EXPECT_EQ(s.simulation.forceStrategy, ForceStrategy::Auto);
+  EXPECT_EQ(s.simulation.gravity.y, -9.81);
+  EXPECT_FALSE(s.simulation.effects.any());
+  EXPECT_TRUE(s.output.directory.empty());
+  const ClothGridSpec defaults;
+  EXPECT_EQ(s.bodies[0].grid.width, defaults.width);
+  EXPECT_EQ(s.bodies[0].grid.spacing, 1.0 / (defaults.width - 1));
+  EXPECT_EQ(s.bodies[0].grid.totalMass, defaults.totalMass);
+  EXPECT_EQ(s.bodies[0].name, "cloth_grid");
+}
+
+TEST(SceneReader, StepCountSaturatesInsteadOfOverflowing) {
+  SceneSpec s;
+  s.simulation.dt = 1e-300;
+  s.duration = 1e300;
+  EXPECT_EQ(sceneStepCount(s), std::numeric_limits<std::int64_t>::max());
+  s.duration = 1e-320;  // underflows to 0 steps without the floor of 1
+  s.simulation.dt = 1e10;
+  EXPECT_EQ(sceneStepCount(s), 1);
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad input
+// ---------------------------------------------------------------------------------------
+
+struct BadScene {
+  const char* name;
+  std::string json;
+  const char* field;  // the message must name it ...
+  const char* value;  // ... and this (the value, or what is missing or wrong)
+};
+
+std::string rope(const std::string& extra) {
+  return R"({"bodies": [{"type": "rope")" + extra + R"(}], "dt": 0.001, "steps": 10})";
+}
+std::string grid(const std::string& extra) {
+  return R"({"bodies": [{"type": "cloth_grid", "width": 4, "height": 4)" + extra + R"(}], "dt": 0.001, "steps": 10})";
+}
+std::string top(const std::string& extra) {
+  return R"({"bodies": [{"type": "rope"}], "dt": 0.001, "steps": 10)" + extra + "}";
+}
+std::string noTiming(const std::string& extra) { return R"({"bodies": [{"type": "rope"}])" + extra + "}"; }
+std::string timing(const std::string& dt, const std::string& steps) {
+  return R"({"bodies": [{"type": "rope"}], "dt": )" + dt + R"(, "steps": )" + steps + "}";
+}
+
+const std::vector<BadScene>& badScenes() {
+  static const std::vector<BadScene> cases = {
+      // Not JSON
+      {"truncated", R"({"bodies": [{"type": "rope"}], "dt": 0.001, "steps": 10)", "steps", "end of input"},
+      {"truncated_in_a_body", R"({"bodies": [{"type": "rope", "length": )", "bodies[0].length", "end of input"},
+      {"trailing_comma", top(","), "steps", "unexpected '}'"},
+      {"trailing_comma_in_array", R"({"bodies": [{"type": "rope"},], "dt": 0.001, "steps": 10})", "bodies[1]",
+       "unexpected ']'"},
+      {"not_json", "dt = 0.001", "malformed JSON", "'d'"},
+      {"empty", "", "malformed JSON", "end of input"},
+      {"nan_literal", R"({"bodies": [{"type": "rope"}], "dt": NaN, "steps": 10})", "dt", R"(last read: '"dt": N')"},
+      {"number_overflow", R"({"bodies": [{"type": "rope"}], "dt": 1e999, "steps": 10})", "dt", "1e999"},
+      {"negative_number_overflow", rope(R"(, "origin": [0, -1e999, 0])"), "bodies[0].origin[1]", "-1e999"},
+      {"duplicate_key", top(R"(, "dt": 1)"), "dt", "duplicate key"},
+      {"too_deep", std::string(40, '[') + std::string(40, ']'), "[0][0]", "nesting deeper than 32"},
+      {"not_an_object", "[1, 2]", "(top level)", "[1,2]"},
+      // Unknown keys (the message lists the allowed ones)
+      {"unknown_top_key", top(R"(, "colour": "red")"), "colour", "allowed keys here: name, bodies, integrator"},
+      {"unknown_body_key", rope(R"(, "lenght": 2)"), "bodies[0].lenght", "allowed keys here: type, name, particles"},
+      {"unknown_material", rope(R"(, "materials": {"shear": {}})"), "bodies[0].materials.shear",
+       "allowed keys here: structural, bend"},
+      {"unknown_material_key", grid(R"(, "materials": {"bend": {"stifness": 3}})"), "bodies[0].materials.bend.stifness",
+       "allowed keys here: stiffness, damping"},
+      {"unknown_wind_key", top(R"(, "effects": {"wind": {"gust_sclae": 2}})"), "effects.wind.gust_sclae",
+       "allowed keys here: velocity, air_density, drag_coefficient"},
+      {"unknown_effect", top(R"(, "effects": {"gravity": 1})"), "effects.gravity", "drag, wind, repulsion"},
+      {"unknown_key_with_a_newline", rope(R"(, "a\nb": 1)"), R"(bodies[0]."a\nb")", "allowed keys here"},
+      {"grid_key_on_a_rope", rope(R"(, "width": 3)"), "bodies[0].width", "allowed keys here"},
+      // Wrong types
+      {"string_dt", timing(R"("0.001")", "10"), "dt", R"(string "0.001")"},
+      {"number_integrator", top(R"(, "integrator": 4)"), "integrator", "number 4"},
+      {"vector_of_two", top(R"(, "gravity": [0, -9.81])"), "gravity", "[0,-9.81]"},
+      {"vector_of_strings", rope(R"(, "origin": [0, "1", 0])"), "bodies[0].origin[1]", R"("1")"},
+      {"object_for_pins", rope(R"(, "pins": {"particles": [0]})"), "bodies[0].pins", R"({"particles":[0]})"},
+      {"string_pin", rope(R"(, "pins": ["first"])"), "bodies[0].pins[0]", R"("first")"},
+      {"fractional_pin", rope(R"(, "pins": [1.5])"), "bodies[0].pins[0]", "1.5"},
+      {"negative_pin", rope(R"(, "pins": [-1])"), "bodies[0].pins[0]", "-1"},
+      {"string_steps", timing("0.001", R"("10")"), "steps", R"("10")"},
+      {"fractional_steps", timing("0.001", "10.5"), "steps", "10.5"},
+      {"bool_as_number", rope(R"(, "length": true)"), "bodies[0].length", "boolean true"},
+      {"number_as_bool", rope(R"(, "bend_springs": 1)"), "bodies[0].bend_springs", "number 1"},
+      {"body_not_an_object", R"({"bodies": [3], "dt": 0.001, "steps": 10})", "bodies[0]", "number 3"},
+      {"null_materials", rope(R"(, "materials": null)"), "bodies[0].materials", "null"},
+      // Out of range
+      {"zero_total_mass", rope(R"(, "total_mass": 0)"), "bodies[0].total_mass", "got 0"},
+      {"negative_total_mass", grid(R"(, "total_mass": -0.5)"), "bodies[0].total_mass", "got -0.5"},
+      {"zero_particle_mass", rope(R"(, "particle_mass": 0)"), "bodies[0].particle_mass", "got 0"},
+      {"negative_particle_mass", grid(R"(, "particle_mass": -1e-3)"), "bodies[0].particle_mass", "got -0.001"},
+      {"both_masses", rope(R"(, "total_mass": 1, "particle_mass": 0.1)"), "bodies[0]", "total_mass 1"},
+      {"particle_mass_overflows", rope(R"(, "particle_mass": 1e308, "particles": 100)"), "bodies[0].particle_mass",
+       "1e+308"},
+      {"total_mass_underflows", rope(R"(, "total_mass": 1e-322, "particles": 100)"), "bodies[0].total_mass", "1e-322"},
+      {"zero_areal_density", R"({"bodies": [{"type": "cloth_mesh", "mesh": "meshes/cloth.obj", "areal_density": 0}],
+                                 "dt": 0.001, "steps": 10})",
+       "bodies[0].areal_density", "got 0"},
+      {"zero_dt", timing("0", "10"), "dt", "got 0"},
+      {"negative_dt", timing("-1", "10"), "dt", "got -1"},
+      {"negative_zero_dt", timing("-0.0", "10"), "dt", "got -0.0"},
+      {"zero_steps", timing("0.001", "0"), "steps", "got 0"},
+      {"huge_steps", timing("0.001", "99999999999999999999999"), "steps", "e+22"},
+      {"uint64_max_steps", timing("0.001", "18446744073709551615"), "steps", "18446744073709551615"},
+      {"huge_pin", rope(R"(, "pins": [4294967296])"), "bodies[0].pins[0]", "4294967296"},
+      {"huge_particles", rope(R"(, "particles": 9223372036854775807)"), "bodies[0].particles", "9223372036854775807"},
+      {"one_particle", rope(R"(, "particles": 1)"), "bodies[0].particles", "got 1"},
+      {"grid_too_large", R"({"bodies": [{"type": "cloth_grid", "width": 32768, "height": 4096}], "dt": 0.001,
+                             "steps": 10})",
+       "bodies[0]", "32768 x 4096"},
+      {"negative_stiffness", grid(R"(, "materials": {"bend": {"stiffness": -3}})"),
+       "bodies[0].materials.bend.stiffness", "got -3"},
+      {"zero_length", rope(R"(, "length": 0)"), "bodies[0].length", "got 0"},
+      {"zero_direction", rope(R"(, "direction": [0, 0, 0])"), "bodies[0].direction", "[0,0,0]"},
+      {"parallel_axes", grid(R"(, "row_axis": [1, 0, 0], "column_axis": [-2, 0, 0])"), "bodies[0].column_axis",
+       "[-2, 0, 0]"},
+      {"rope_out_of_reach", rope(R"(, "origin": [1e308, 0, 0], "length": 1e308)"), "bodies[0]", "inf"},
+      {"negative_drag", top(R"(, "effects": {"drag": -1})"), "effects.drag", "got -1"},
+      {"zero_air_density", top(R"(, "effects": {"wind": {"air_density": 0}})"), "effects.wind.air_density", "got 0"},
+      {"too_many_gust_modes", top(R"(, "effects": {"wind": {"gust_modes": 65}})"), "effects.wind.gust_modes", "got 65"},
+      {"negative_seed", top(R"(, "effects": {"wind": {"seed": -1}})"), "effects.wind.seed", "got -1"},
+      {"too_many_threads", top(R"(, "threads": 2000)"), "threads", "got 2000"},
+      {"cg_tolerance_one", top(R"(, "integration": {"cg_tolerance": 1})"), "integration.cg_tolerance", "got 1"},
+      {"zero_atol", top(R"(, "integration": {"atol": 0})"), "integration.atol", "got 0"},
+      {"zero_every", top(R"(, "output": {"directory": "x", "every": 0})"), "output.every", "got 0"},
+      {"empty_output_directory", top(R"(, "output": {"directory": ""})"), "output.directory", "must not be empty"},
+      {"unknown_format", top(R"(, "output": {"format": "vtk"})"), "output.format", R"("vtk")"},
+      {"duration_too_long", noTiming(R"(, "dt": 1e-300, "duration": 1e300)"), "duration", "1e+300"},
+      // Found by the fuzzer: a float scene's drag beyond float's range (the simulation threw,
+      // naming no file).
+      {"drag_out_of_float_range", top(R"(, "precision": "float", "effects": {"drag": 0.004e200})"), "effects.drag",
+       "got 4e+197"},
+      {"gravity_out_of_float_range", top(R"(, "precision": "float", "gravity": [0, -1e39, 0])"), "gravity[1]",
+       "got -1e+39"},
+      {"wind_out_of_float_range", top(R"(, "precision": "float", "effects": {"wind": {"velocity": [1e40, 0, 0]}})"),
+       "effects.wind.velocity[0]", "got 1e+40"},
+      {"grid_stencil_for_a_rope", top(R"(, "force_strategy": "grid-stencil")"), "force_strategy",
+       "got 1 body, the first a rope"},
+      {"grid_stencil_for_two_grids",
+       R"({"bodies": [{"type": "cloth_grid"}, {"type": "cloth_grid"}], "dt": 0.001, "steps": 10,
+           "force_strategy": "grid"})",
+       "force_strategy", "got 2 bodies"},
+      // Missing or contradictory
+      {"missing_bodies", R"({"dt": 0.001, "steps": 10})", "bodies", "is required"},
+      {"empty_bodies", R"({"bodies": [], "dt": 0.001, "steps": 10})", "bodies", "[]"},
+      {"missing_dt", noTiming(R"(, "steps": 10)"), "dt", "is required"},
+      {"missing_steps_and_duration", noTiming(R"(, "dt": 0.001)"), "steps", "duration"},
+      {"steps_and_duration", noTiming(R"(, "dt": 0.001, "steps": 10, "duration": 2)"), "steps", "steps 10, duration 2"},
+      {"missing_type", R"({"bodies": [{"particles": 3}], "dt": 0.001, "steps": 10})", "bodies[0].type", "is required"},
+      {"unknown_type", R"({"bodies": [{"type": "cloth"}], "dt": 0.001, "steps": 10})", "bodies[0].type", R"("cloth")"},
+      {"unknown_integrator", top(R"(, "integrator": "rk5")"), "integrator", R"("rk5")"},
+      {"unknown_precision", top(R"(, "precision": "half")"), "precision", R"("half")"},
+      {"missing_mesh", R"({"bodies": [{"type": "cloth_mesh"}], "dt": 0.001, "steps": 10})", "bodies[0].mesh",
+       "is required"},
+      {"missing_mesh_file", R"({"bodies": [{"type": "cloth_mesh", "mesh": "meshes/nope.obj"}], "dt": 0.001,
+                                "steps": 10})",
+       "bodies[0].mesh", R"("meshes/nope.obj")"},
+      {"mesh_is_a_directory", R"({"bodies": [{"type": "cloth_mesh", "mesh": "meshes"}], "dt": 0.001, "steps": 10})",
+       "bodies[0].mesh", "is a directory"},
+      {"repulsion_without_stiffness", top(R"(, "effects": {"repulsion": {"radius": 0.01}})"),
+       "effects.repulsion.stiffness", R"({"radius":0.01})"},
+      {"repulsion_without_radius", top(R"(, "effects": {"repulsion": {"stiffness": 10}})"), "effects.repulsion.radius",
+       R"({"stiffness":10})"},
+      {"repulsion_radius_too_small", top(R"(, "effects": {"repulsion": {"radius": 1e-12, "stiffness": 10}})"),
+       "effects.repulsion.radius", "1e-12"},
+      // Pins
+      {"pin_out_of_range", rope(R"(, "particles": 32, "pins": [0, 32])"), "bodies[0].pins[1]", "32"},
+      {"pin_list_out_of_range", grid(R"(, "pins": [{"particles": [0, 16]}])"), "bodies[0].pins[0].particles[1]", "16"},
+      {"empty_pin_list", grid(R"(, "pins": [{"particles": []}])"), "bodies[0].pins[0].particles", "[]"},
+      {"pin_without_selection", grid(R"(, "pins": [{"path": {}}])"), "bodies[0].pins[0]", "particles or box"},
+      {"box_selects_nothing", grid(R"(, "pins": [{"box": {"min": [5, 5, 5], "max": [6, 6, 6]}}])"),
+       "bodies[0].pins[0].box", "min [5, 5, 5], max [6, 6, 6]"},
+      {"box_min_above_max", grid(R"(, "pins": [{"box": {"min": [1, 0, 0], "max": [0, 1, 1]}}])"),
+       "bodies[0].pins[0].box", "min [1, 0, 0], max [0, 1, 1]"},
+      {"box_without_max", grid(R"(, "pins": [{"box": {"min": [1, 0, 0]}}])"), "bodies[0].pins[0].box", "min and max"},
+      {"path_end_before_start", rope(R"(, "pins": [{"particles": [0], "path": {"start": 1, "end": 0.5}}])"),
+       "bodies[0].pins[0].path.end", "got 0.5"},
+      {"path_negative_start", rope(R"(, "pins": [{"particles": [0], "path": {"start": -1}}])"),
+       "bodies[0].pins[0].path.start", "got -1"},
+      {"path_turning_about_nothing",
+       rope(R"(, "pins": [{"particles": [0], "path": {"angular_velocity": 1, "axis": [0, 0, 0]}}])"),
+       "bodies[0].pins[0].path.axis", "[0, 0, 0]"},
+      {"path_infinite_axis",
+       rope(R"(, "pins": [{"particles": [0], "path": {"angular_velocity": 1, "axis": [1e300, 1e300, 0]}}])"),
+       "bodies[0].pins[0].path.axis", "1e+300"},
+      {"two_paths_for_one_particle",
+       grid(R"(, "pins": [{"particles": [0, 1], "path": {}}, {"box": {"min": [-1, -1, -1], "max": [0, 1, 1]},
+                           "path": {"velocity": [1, 0, 0]}}])"),
+       "bodies[0].pins[1]", "particle 0 is already moved by pins[0]"},
+  };
+  return cases;
+}
+
+class SceneBadInput : public ::testing::TestWithParam<BadScene> {};
+
+TEST_P(SceneBadInput, IsASceneErrorNamingTheSourceTheFieldAndTheValue) {
+  const BadScene& bad = GetParam();
+  const std::string message = sceneError([&] { parseScene(bad.json, "bad-scene.json", kScenes); });
+  EXPECT_THAT(message, HasSubstr("bad-scene.json: ")) << bad.json;
+  EXPECT_THAT(message, HasSubstr(bad.field)) << bad.json;
+  EXPECT_THAT(message, HasSubstr(bad.value)) << bad.json;
+  EXPECT_LT(message.size(), 400u) << "a message is one readable line";
+}
+
+INSTANTIATE_TEST_SUITE_P(Reader, SceneBadInput, ::testing::ValuesIn(badScenes()),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+TEST(SceneBadInputTable, NamesAreUnique) {
+  std::set<std::string> names;
+  for (const BadScene& bad : badScenes()) EXPECT_TRUE(names.insert(bad.name).second) << bad.name;
+}
+
+TEST(SceneBadFiles, UnreadableSceneFiles) {
+  const std::string missing = ::testing::TempDir() + "weft_test_scene_no_such_file.json";
+  EXPECT_THAT(sceneError([&] { readSceneFile(missing); }), HasSubstr(missing + ": cannot open the scene file"));
+  EXPECT_THAT(sceneError([&] { readSceneFile(kScenes); }), HasSubstr(kScenes + ": is a directory"));
+  const std::string bad = writeTemp("bad.json", "{\n  \"bodies\": [{\"type\": \"rope\"}],\n  \"dt\": 0.001,\n}\n");
+  const std::string message = sceneError([&] { readSceneFile(bad); });
+  EXPECT_THAT(message, HasSubstr(bad + ": dt: malformed JSON"));
+  EXPECT_THAT(message, HasSubstr("line 4, column 1"));
+}
+
+/// Bad meshes and mesh pins show when the scene is assembled (the reader checks only that
+/// the file is there): the message names the scene, the body's field and the file.
+TEST(SceneBadFiles, MeshFilesThatAreNoClothFailAtAssembly) {
+  const std::vector<std::pair<std::string, std::string>> meshes = {
+      {"no_triangles.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nl 1 2\nl 2 3\n"},
+      {"empty.obj", ""},
+      {"garbage.obj", "this is not a mesh \x01\x02\x03\n"},
+  };
+  for (const auto& [name, text] : meshes) {
+    SCOPED_TRACE(name);
+    const std::string path = writeTemp(name, text);
+    const SceneSpec spec =
+        parseScene(R"({"name": "mesh-scene", "bodies": [{"type": "cloth_mesh", "mesh": ")" + path + R"("}], "dt": 0.001,
+            "steps": 1, "output": {"directory": "never"}})",
+                   "mesh.json");
+    const std::string message = sceneError([&] { assembleScene<double>(spec); });
+    EXPECT_THAT(message, HasSubstr("mesh-scene: bodies[0].mesh: "));
+    EXPECT_THAT(message, HasSubstr(path));
+  }
+  const std::string cloth = kScenes + "/meshes/cloth.obj";
+  const auto meshScene = [&](const std::string& pins) {
+    return parseScene(R"({"name": "mesh-scene", "bodies": [{"type": "cloth_mesh", "mesh": ")" + cloth +
+                      R"(", "pins": )" + pins + R"(}], "dt": 0.001, "steps": 1})");
+  };
+  EXPECT_THAT(sceneError([&] { assembleScene<float>(meshScene("[0, 217]")); }),
+              HasSubstr("mesh-scene: bodies[0].pins[1]: particle 217 is not in the body"));
+  EXPECT_THAT(
+      sceneError([&] { assembleScene<double>(meshScene(R"([{"box": {"min": [2, 2, 2], "max": [3, 3, 3]}}])")); }),
+      HasSubstr("mesh-scene: bodies[0].pins[0].box: selects no particle of the body: none is inside min "
+                "[2, 2, 2], max [3, 3, 3]"));
+  EXPECT_THAT(
+      sceneError([&] {
+        assembleScene<double>(meshScene(
+            R"([{"particles": [0], "path": {}}, {"box": {"min": [-99, -99, -99], "max": [99, 99, 99]}, "path": {}}])"));
+      }),
+      HasSubstr("mesh-scene: bodies[0].pins[1]: particle 0 is already moved by pins[0]"));
+}
+
+/// What depends on the precision asked for when assembling (the command line's --precision
+/// overrides the file's) or on a SceneSpec filled in C++ is checked by assembleScene.
+TEST(SceneBadFiles, AssemblyChecksWhatTheSimulationWouldRefuse) {
+  SceneSpec spec = parseScene(R"({"name": "wide", "bodies": [{"type": "rope"}], "dt": 0.001, "steps": 1,
+                                  "gravity": [0, -1e39, 0]})");
+  EXPECT_NO_THROW(assembleScene<double>(spec));
+  EXPECT_THAT(sceneError([&] { assembleScene<float>(spec); }),
+              HasSubstr("wide: gravity[1]: must be within the range of float precision"));
+  spec = builtinSceneSpec("rope", 8);
+  spec.simulation.forceStrategy = ForceStrategy::GridStencil;
+  EXPECT_THAT(sceneError([&] { assembleScene<double>(spec); }),
+              HasSubstr("rope: force_strategy: grid-stencil needs a scene of a single cloth_grid body"));
+  spec = builtinSceneSpec("flag", 4);
+  spec.simulation.forceStrategy = ForceStrategy::GridStencil;
+  EXPECT_NO_THROW(assembleScene<float>(spec));
+}
+
+// ---------------------------------------------------------------------------------------
+// The command line: exit 2, the message on stderr, no output
+// ---------------------------------------------------------------------------------------
+
+#ifdef WEFT_CLI_PATH
+struct CliRun {
+  int exitCode = -1;
+  std::string out, err;
+};
+
+CliRun weftRun(const std::string& args) {
+  // One stderr file per test (ctest -j runs the tests of this file side by side).
+  const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = std::string(test->test_suite_name()) + "_" + test->name();
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  const std::string errFile = ::testing::TempDir() + "weft_test_scene_stderr_" + name + ".txt";
+  const std::string command = std::string("'") + WEFT_CLI_PATH + "' run " + args + " 2>'" + errFile + "'";
+  CliRun r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    ADD_FAILURE() << "popen failed: " << command;
+    return r;
+  }
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.out.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  std::ifstream in(errFile);
+  std::ostringstream text;
+  text << in.rdbuf();
+  r.err = text.str();
+  return r;
+}
+
+struct BadFile {
+  const char* name;
+  std::string body;   // the body, in a scene that writes frames
+  const char* field;  // what stderr must name besides the file
+};
+
+class SceneCliBadFile : public ::testing::TestWithParam<BadFile> {};
+
+TEST_P(SceneCliBadFile, ExitsTwoNamingTheFileAndWritesNothing) {
+  const BadFile& bad = GetParam();
+  const std::string out = ::testing::TempDir() + "weft_test_scene_frames_" + bad.name;
+  std::filesystem::remove_all(out);
+  const std::string empty = writeTemp(std::string(bad.name) + "_empty_mesh.obj", "");
+  std::string body = bad.body;
+  if (const size_t at = body.find("EMPTY_MESH"); at != std::string::npos) body.replace(at, 10, empty);
+  const std::string file = writeTemp(std::string(bad.name) + ".json", R"({"name": "cli-bad", "bodies": [)" + body +
+                                                                          R"(], "dt": 0.001, "steps": 3,
+        "output": {"directory": ")" + out + R"(", "format": "obj", "every": 1}})");
+  for (const char* extra : {"", " --json"}) {
+    SCOPED_TRACE(extra);
+    const CliRun r = weftRun("'" + file + "'" + extra);
+    EXPECT_EQ(r.exitCode, 2) << r.err;
+    EXPECT_THAT(r.err, HasSubstr("weft: "));
+    EXPECT_THAT(r.err, HasSubstr(bad.field));
+    EXPECT_EQ(r.out, "") << "nothing on stdout that looks like a result";
+    EXPECT_FALSE(std::filesystem::exists(out)) << "a rejected scene must not create its output directory";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Run, SceneCliBadFile,
+    ::testing::Values(
+        // Rejected by the reader: the message names the file.
+        BadFile{"unknown_key", R"({"type": "rope", "lenght": 1})", "unknown_key.json: bodies[0].lenght"},
+        BadFile{"negative_mass", R"({"type": "cloth_grid", "width": 3, "height": 3, "total_mass": -1})",
+                "negative_mass.json: bodies[0].total_mass: must be > 0 kg, got -1"},
+        BadFile{"missing_mesh", R"({"type": "cloth_mesh", "mesh": "no-such-mesh.obj"})",
+                "missing_mesh.json: bodies[0].mesh: cannot read the mesh file \"no-such-mesh.obj\""},
+        BadFile{"box_selects_nothing", R"({"type": "rope", "pins": [{"box": {"min": [3, 3, 3], "max": [4, 4, 4]}}]})",
+                "box_selects_nothing.json: bodies[0].pins[0].box: selects no particle"},
+        // Rejected when assembled (the mesh is read then): the message names the scene and the mesh.
+        BadFile{"empty_mesh", R"({"type": "cloth_mesh", "mesh": "EMPTY_MESH"})", "cli-bad: bodies[0].mesh: mesh file"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(SceneCli, MalformedFileExitsTwoWithTheLineAndColumn) {
+  const std::string file = writeTemp("malformed.json", "{\"bodies\": [{\"type\": \"rope\"}],\n \"dt\": 0.001,,\n}");
+  const CliRun r = weftRun("'" + file + "' --json");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.err, HasSubstr(file + ": dt: malformed JSON"));
+  EXPECT_THAT(r.err, HasSubstr("line 2, column 14"));
+  EXPECT_EQ(r.out, "");
+}
+
+TEST(SceneCli, AGoodFileWritesItsFrames) {
+  // The counterpart of the bad files: the same kind of scene, valid, writes its output.
+  const std::string out = ::testing::TempDir() + "weft_test_scene_frames_good";
+  std::filesystem::remove_all(out);
+  const std::string file = writeTemp("good.json", R"({"bodies": [{"type": "rope", "particles": 8, "pins": [0]}],
+      "dt": 0.001, "steps": 4, "output": {"directory": ")" +
+                                                      out + R"(", "format": "obj", "every": 2}})");
+  const CliRun r = weftRun("'" + file + "' --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["status"], "ok");
+  EXPECT_EQ(j["frames_written"], 3);
+  EXPECT_TRUE(std::filesystem::exists(out + "/frame_000002.obj"));
+}
+#endif
+
+}  // namespace
+}  // namespace weft::test
