@@ -264,6 +264,49 @@ TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
     }
 }
 
+TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
+  // A cloth falling fast onto a floor (rollbacks), a sphere, a capsule, a box and a moving
+  // icosphere mesh, continuous detection on, collision profiling on, 1 and 2 threads.
+  ClothGridSpec spec = flagSpec(kFlagSize);
+  spec.origin = {-0.5, 0.02, -0.5};
+  ModelBuilder<double> b;
+  addClothGrid(b, spec);
+  ModelAndState<double> cloth = b.build();
+  cloth.state.v.col(1).setConstant(-4.0);
+  for (const IntegratorKind kind : {IntegratorKind::SymplecticEuler, IntegratorKind::Rk4})
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE(::testing::Message() << integratorName(kind) << ", " << threads << " thread(s)");
+      SimulationOptions options;
+      options.integrator = kind;
+      options.threads = threads;
+      options.dt = defaultTimeStep(BuiltinScene::Flag, kFlagSize);
+      options.profileEffects = true;
+      CollisionOptions& c = options.collision;
+      c.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+      c.obstacles.push_back(Obstacle::sphere({0.2, 0, 0.1}, 0.1));
+      c.obstacles.push_back(Obstacle::capsule({-0.3, 0, -0.2}, {0.3, 0, -0.2}, 0.03));
+      c.obstacles.push_back(Obstacle::box({-0.2, 0, 0.3}, {0.1, 0.05, 0.1}));
+      MeshObstacle mesh;
+      mesh.mesh = makeIcosphere({0, 0, 0}, 0.08, 3);
+      mesh.path = KinematicPath{};
+      mesh.path->velocity = {0.5, 0, 0};
+      mesh.path->angularVelocity = 1;
+      c.meshes.push_back(mesh);
+      Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
+      ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
+      StepStatus status;
+      const Counts steps = countDuring([&] {
+        for (int k = 0; k < 20; ++k) status = sim.step();
+      });
+      ASSERT_TRUE(status.ok()) << status.message();
+      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
+      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      EXPECT_GT(sim.totalCollision().contacts, 0);
+      EXPECT_GT(sim.totalCollision().rollbacks, 0);
+      EXPECT_GT(sim.effectTimes().collision, 0);
+    }
+}
+
 TEST(ClockAllocation, AdvancingAndInterpolatingDoNotAllocate) {
   SimulationOptions options;
   options.threads = 2;

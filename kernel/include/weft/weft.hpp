@@ -1,6 +1,10 @@
 // weft/weft.hpp — the embedding API in one include.
 #pragma once
 
+#include "weft/collide/bvh.hpp"
+#include "weft/collide/obstacles.hpp"
+#include "weft/collide/shapes.hpp"
+#include "weft/core/kinematic_path.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/core/state.hpp"
 #include "weft/effects/effects.hpp"

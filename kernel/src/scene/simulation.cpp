@@ -21,33 +21,13 @@ const SimulationOptions& validated(const SimulationOptions& o) {
   if (!(std::isfinite(o.gravity.x) && std::isfinite(o.gravity.y) && std::isfinite(o.gravity.z)))
     throw std::invalid_argument("SimulationOptions.gravity must be finite");
   validateEffects(o.effects, "SimulationOptions.effects");
+  validateCollision(o.collision, "SimulationOptions.collision");
   if (std::isnan(o.stability.maxStretch))
     throw std::invalid_argument("SimulationOptions.stability.maxStretch must not be NaN");
   return o;
 }
 
 double norm(const Vec3d& a) { return std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z); }
-
-void validatePath(const KinematicPath& p, size_t set) {
-  const std::string where = "SimulationOptions.kinematicPins[" + std::to_string(set) + "].path.";
-  const auto finite = [&](const Vec3d& v, const char* field) {
-    if (!(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)))
-      throw std::invalid_argument(where + field + " must be finite, got (" + std::to_string(v.x) + ", " +
-                                  std::to_string(v.y) + ", " + std::to_string(v.z) + ")");
-  };
-  finite(p.velocity, "velocity");
-  finite(p.center, "center");
-  finite(p.axis, "axis");
-  if (!std::isfinite(p.angularVelocity))
-    throw std::invalid_argument(where + "angularVelocity must be finite (rad/s), got " +
-                                std::to_string(p.angularVelocity));
-  if (p.angularVelocity != 0 && !(norm(p.axis) > 0))
-    throw std::invalid_argument(where + "axis must be a non-zero vector when angularVelocity is not 0");
-  if (!(std::isfinite(p.startTime) && p.startTime >= 0))
-    throw std::invalid_argument(where + "startTime must be finite and >= 0 (s), got " + std::to_string(p.startTime));
-  if (!(p.endTime >= p.startTime))
-    throw std::invalid_argument(where + "endTime must be >= startTime (s), got " + std::to_string(p.endTime));
-}
 
 template <class S>
 std::shared_ptr<const Model<S>> requireModel(std::shared_ptr<const Model<S>> model) {
@@ -76,7 +56,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   // Kinematic pins: validated against the model, tracked from the initial positions.
   for (size_t set = 0; set < options_.kinematicPins.size(); ++set) {
     const KinematicPins& pins = options_.kinematicPins[set];
-    validatePath(pins.path, set);
+    validateKinematicPath(pins.path, "SimulationOptions.kinematicPins[" + std::to_string(set) + "].path.");
     KinematicPath path = pins.path;
     const double a = norm(path.axis);
     if (a > 0) path.axis = {path.axis.x / a, path.axis.y / a, path.axis.z / a};
@@ -103,25 +83,8 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   trackEnd_.resize(tracks_.size());
   trackVelocity_.setZero(static_cast<Index>(tracks_.size()), 3);
   forces_.setProfiling(options_.profileEffects);
-}
-
-Vec3d kinematicPosition(const KinematicPath& path, const Vec3d& p0, double t) {
-  const double tau = std::clamp(t, path.startTime, path.endTime) - path.startTime;
-  const Vec3d r{p0.x - path.center.x, p0.y - path.center.y, p0.z - path.center.z};
-  Vec3d q = r;
-  if (path.angularVelocity != 0) {
-    // Rodrigues: q = r cos + (k x r) sin + k (k . r)(1 - cos), k the unit axis.
-    const double len = norm(path.axis);
-    const Vec3d k{path.axis.x / len, path.axis.y / len, path.axis.z / len};
-    const double angle = path.angularVelocity * tau;
-    const double c = std::cos(angle), s = std::sin(angle);
-    const double kr = k.x * r.x + k.y * r.y + k.z * r.z;
-    const Vec3d kxr{k.y * r.z - k.z * r.y, k.z * r.x - k.x * r.z, k.x * r.y - k.y * r.x};
-    q = {r.x * c + kxr.x * s + k.x * kr * (1 - c), r.y * c + kxr.y * s + k.y * kr * (1 - c),
-         r.z * c + kxr.z * s + k.z * kr * (1 - c)};
-  }
-  return {path.center.x + path.velocity.x * tau + q.x, path.center.y + path.velocity.y * tau + q.y,
-          path.center.z + path.velocity.z * tau + q.z};
+  if (options_.collision.any())
+    contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount());
 }
 
 template <class S>
@@ -154,16 +117,14 @@ void Simulation<S>::setTimeStep(double dt) {
 }
 
 template <class S>
-StepStatus Simulation<S>::step() {
-  if (!status_.ok()) return status_;
-  const bool kinematic = !tracks_.empty();
-  if (kinematic) {
-    // Kinematic particles start the step exactly on their path and move along the chord
-    // to where the path is at t + dt: with inverse mass 0 every integrator moves them by
+bool Simulation<S>::advanceChunk(double h) {
+  if (!tracks_.empty()) {
+    // Kinematic particles start the chunk exactly on their path and move along the chord
+    // to where the path is at t + h: with inverse mass 0 every integrator moves them by
     // exactly h v.
     const auto start =
         options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-    const double t0 = state_.time - clockStart_, t1 = t0 + options_.dt;
+    const double t0 = state_.time - clockStart_, t1 = t0 + h;
     for (size_t k = 0; k < tracks_.size(); ++k) {
       const KinematicTrack& tr = tracks_[k];
       const KinematicPath& path = paths_[tr.path];
@@ -174,32 +135,30 @@ StepStatus Simulation<S>::step() {
       state_.x(i, 0) = static_cast<S>(a.x);
       state_.x(i, 1) = static_cast<S>(a.y);
       state_.x(i, 2) = static_cast<S>(a.z);
-      state_.v(i, 0) = static_cast<S>((b.x - a.x) / options_.dt);
-      state_.v(i, 1) = static_cast<S>((b.y - a.y) / options_.dt);
-      state_.v(i, 2) = static_cast<S>((b.z - a.z) / options_.dt);
+      state_.v(i, 0) = static_cast<S>((b.x - a.x) / h);
+      state_.v(i, 1) = static_cast<S>((b.y - a.y) / h);
+      state_.v(i, 2) = static_cast<S>((b.z - a.z) / h);
     }
     if (options_.profileEffects)
       kinematicSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   forces_.beginStep(state_.time);
+  StepWork work;
   executor_->run([&] {
-    lastWork_ =
-        integrator_->advance(forces_, state_.x, state_.v, static_cast<S>(options_.dt), nextX_, nextV_, *executor_);
-    if (lastWork_.failed) {
+    work = integrator_->advance(forces_, state_.x, state_.v, static_cast<S>(h), nextX_, nextV_, *executor_);
+    if (work.failed) {
       status_ = StepStatus{};
       status_.code = StepCode::StepSizeUnderflow;
-      status_.value = static_cast<double>(lastWork_.substeps + lastWork_.rejectedSubsteps);
+      status_.value = static_cast<double>(work.substeps + work.rejectedSubsteps);
     } else {
       status_ = stability_.check(nextX_, nextV_, *executor_);
     }
   });
-  totalWork_ += lastWork_;
+  lastWork_ += work;
   if (!status_.ok()) {
     status_.time = state_.time;
-    integrator_->reset();                        // anything it carried belongs to the rejected candidate
-    for (size_t k = 0; k < tracks_.size(); ++k)  // the state is left as it was
-      for (int c = 0; c < 3; ++c) state_.v(tracks_[k].particle, c) = trackVelocity_(static_cast<Index>(k), c);
-    return status_;
+    rejectChunk();  // the state is left as it was
+    return false;
   }
   for (size_t k = 0; k < tracks_.size(); ++k) {  // exactly on the path, no drift
     const Index i = tracks_[k].particle;
@@ -207,10 +166,91 @@ StepStatus Simulation<S>::step() {
     nextX_(i, 1) = static_cast<S>(trackEnd_[k].y);
     nextX_(i, 2) = static_cast<S>(trackEnd_[k].z);
   }
+  return true;
+}
+
+template <class S>
+void Simulation<S>::rejectChunk() {
+  integrator_->reset();  // anything it carried belongs to the rejected candidate
+  for (size_t k = 0; k < tracks_.size(); ++k)
+    for (int c = 0; c < 3; ++c) state_.v(tracks_[k].particle, c) = trackVelocity_(static_cast<Index>(k), c);
+}
+
+template <class S>
+void Simulation<S>::acceptChunk(double h) {
   state_.x.swap(nextX_);  // O(1): exchanges storage, no copy, no allocation
   state_.v.swap(nextV_);
-  ++stepCount_;
-  state_.time += options_.dt;
+  state_.time += h;
+}
+
+template <class S>
+StepStatus Simulation<S>::step() {
+  if (!status_.ok()) return status_;
+  if (contacts_) return stepWithContacts();
+  lastWork_ = StepWork{};
+  if (advanceChunk(options_.dt)) {
+    acceptChunk(options_.dt);
+    ++stepCount_;
+  }
+  totalWork_ += lastWork_;
+  return status_;
+}
+
+template <class S>
+StepStatus Simulation<S>::stepWithContacts() {
+  const auto start =
+      options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+  double integrateSeconds = 0;
+  const double stepStart = state_.time, dt = options_.dt;
+  const CollisionOptions& co = contacts_->options();
+  const ScalarArray<S>& w = model_->inverseMass();
+  // The step is 2^maxHalvings ticks; a chunk is 2^(maxHalvings - halvings) of them, so
+  // every chunk length dt * ticks / total is exact and the chunks end exactly at t + dt.
+  const std::int64_t total = std::int64_t(1) << co.maxHalvings;
+  std::int64_t done = 0;
+  int halvings = 0;
+  lastWork_ = StepWork{};
+  lastCollision_ = CollisionStats{};
+  bool ok = true;
+  while (done < total) {
+    const std::int64_t ticks = std::min(total >> halvings, total - done);
+    const double h =
+        dt * static_cast<double>(ticks) / static_cast<double>(total);  // exact: ticks / total is a power of 2
+    const double t0 = state_.time - clockStart_, t1 = t0 + h;
+    const auto integrateStart =
+        options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+    ok = advanceChunk(h);
+    if (options_.profileEffects)
+      integrateSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - integrateStart).count();
+    if (!ok) break;
+    double depth = 0;
+    executor_->run([&] { depth = contacts_->deepestPenetration(nextX_, w, t1, *executor_); });
+    if (depth > co.maxPenetration) {
+      if (halvings < co.maxHalvings) {  // roll back: the state is untouched; retry with half the chunk
+        rejectChunk();
+        ++halvings;
+        ++lastCollision_.rollbacks;
+        continue;
+      }
+      ++lastCollision_.acceptedDeep;
+    }
+    CollisionStats found;
+    executor_->run([&] { found = contacts_->resolve(state_.x, nextX_, nextV_, w, t0, t1, *executor_); });
+    lastCollision_ += found;
+    if (found.contacts > 0) integrator_->reset();  // the response changed the candidate it may have cached
+    acceptChunk(h);
+    done += ticks;
+  }
+  if (ok) {
+    state_.time = stepStart + dt;  // the same clock as a step without obstacles
+    ++stepCount_;
+  }
+  totalWork_ += lastWork_;
+  totalCollision_ += lastCollision_;
+  if (options_.profileEffects) {
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    collisionSeconds_ += (wall - integrateSeconds) * executor_->threadCount();
+  }
   return status_;
 }
 
@@ -219,6 +259,7 @@ SceneEffectTimes Simulation<S>::effectTimes() const {
   SceneEffectTimes t;
   t.forces = forces_.effectTimes();
   t.kinematicPins = kinematicSeconds_;
+  t.collision = collisionSeconds_;
   return t;
 }
 

@@ -11,6 +11,14 @@
 //     check (x', v')                          error control gave up? finite? no spring beyond maxStretch?
 //     ok: swap (x', v') in, t += dt           failure: keep (x, v), return the status
 //
+// With obstacles (SimulationOptions::collision) a step is split into time chunks, as the
+// original design's rollback: integrate a chunk, measure the candidate's deepest
+// penetration; above CollisionOptions::maxPenetration discard the candidate (the state was
+// never touched, so the restore is exact) and retry with half the chunk, down to
+// maxHalvings halvings, then accept it and count it; otherwise resolve its contacts
+// (ContactSolver: time of impact, continuous detection, restitution, friction) and accept
+// it. Chunks are dt / 2^k, so a step always ends at exactly t + dt.
+//
 // so instability is reported as a status naming the first bad particle and the state is
 // never overwritten with NaN. A failed simulation refuses to step until the time step is
 // changed (setTimeStep) or a state is set (setState). step() never allocates and never
@@ -22,33 +30,19 @@
 #include <memory>
 #include <vector>
 
+#include "weft/collide/obstacles.hpp"
+#include "weft/core/kinematic_path.hpp"
 #include "weft/integrate/integrator.hpp"
 #include "weft/integrate/stability.hpp"
 #include "weft/model/builder.hpp"
 
 namespace weft {
 
-/// A prescribed rigid motion: translation at `velocity` plus rotation about `axis` through
-/// `center` at `angularVelocity`, active between startTime and endTime (s, on the
-/// simulation's clock counted from its initial state) and frozen outside. A particle whose
-/// initial position is p0 is at  center + velocity tau + R(axis, angularVelocity tau)(p0 - center)
-/// with tau = clamp(t, startTime, endTime) - startTime.
-struct KinematicPath {
-  Vec3d velocity{0, 0, 0};                                   // m/s
-  Vec3d center{0, 0, 0};                                     // m, the rotation centre at tau = 0
-  Vec3d axis{0, 1, 0};                                       // direction of the rotation axis (normalised on use)
-  double angularVelocity = 0;                                // rad/s (right hand about axis)
-  double startTime = 0;                                      // s (>= 0)
-  double endTime = std::numeric_limits<double>::infinity();  // s (>= startTime)
-};
-
 /// Pinned particles moved along a path (a bar holding the cloth's edge). The particles
 /// must be pinned in the model (inverse mass 0): forces never move them, the path does.
 /// Within a step a kinematic particle moves along the chord from its position at t to
 /// its position at t + dt (its velocity is the chord's), and it ends the step exactly on
-/// the path, so it never drifts.
-/// Position (m) at time t (s, counted from the initial state) of a particle starting at p0.
-Vec3d kinematicPosition(const KinematicPath& path, const Vec3d& p0, double t);
+/// the path, so it never drifts (the path: weft/core/kinematic_path.hpp).
 
 struct KinematicPins {
   std::vector<Index> particles;
@@ -66,6 +60,7 @@ struct SimulationOptions {
   StabilityOptions stability;
   IntegratorOptions integration;             // tolerances of rk45, CG settings of implicit
   std::vector<KinematicPins> kinematicPins;  // moving pins; none by default, then free
+  CollisionOptions collision;                // obstacles; none by default, then free
   bool profileEffects = false;               // measure the CPU time of each effect (effectTimes())
 };
 
@@ -74,6 +69,7 @@ struct SimulationOptions {
 struct SceneEffectTimes {
   EffectTimes forces;        // drag, wind, repulsion
   double kinematicPins = 0;  // moving the kinematic pins
+  double collision = 0;      // detection, response and rollback decisions (wall time x threads)
 };
 
 template <class S>
@@ -110,6 +106,11 @@ class Simulation {
   const StepWork& lastWork() const { return lastWork_; }
   const StepWork& totalWork() const { return totalWork_; }
   std::int64_t forceEvaluations() const { return totalWork_.forceEvaluations; }
+  /// Collision findings of the last step and summed over all steps (zeros without obstacles).
+  const CollisionStats& lastCollision() const { return lastCollision_; }
+  const CollisionStats& totalCollision() const { return totalCollision_; }
+  /// The contact solver (null without obstacles).
+  const ContactSolver<S>* contactSolver() const { return contacts_.get(); }
   /// Time spent in each effect (zeros unless SimulationOptions::profileEffects).
   SceneEffectTimes effectTimes() const;
 
@@ -139,6 +140,20 @@ class Simulation {
   std::vector<KinematicPath> paths_;  // with normalised axes
   double clockStart_ = 0;             // simulation time of the initial state
   double kinematicSeconds_ = 0;
+  // Collision (null without obstacles) and its findings.
+  std::unique_ptr<ContactSolver<S>> contacts_;
+  CollisionStats lastCollision_, totalCollision_;
+  double collisionSeconds_ = 0;
+  /// Integrates the chunk [t, t + h] from the state into (nextX_, nextV_), the kinematic
+  /// pins on their path; false (status_ set, state untouched) when the check failed.
+  bool advanceChunk(double h);
+  /// Undoes what advanceChunk did to the state (the kinematic pins' velocities) and forgets
+  /// what the integrator carried from the rejected candidate.
+  void rejectChunk();
+  /// Swaps the candidate in: t += h.
+  void acceptChunk(double h);
+  /// One step through chunks with rollback (obstacles present).
+  StepStatus stepWithContacts();
 };
 
 extern template class Simulation<float>;
