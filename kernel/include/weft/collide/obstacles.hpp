@@ -26,6 +26,15 @@
 //               the normal impulse per unit mass dv_n = (1 + e)|v_n|: static (v_t = 0)
 //               when |v_t| <= mu_s dv_n, else kinetic (|v_t| reduced by mu_k dv_n).
 //
+// Mesh obstacles (MeshObstacle) are shells of the thickness around their triangles, static
+// or moving rigidly along a KinematicPath. Their BVH is built once over the vertices at
+// time 0, and each particle's chunk x0 -> x1 is mapped into that frame (x0 by the inverse
+// motion at t0, x1 at t1), so the mesh never needs a refit. Distances are the BVH's
+// closest-triangle query (radius: the thickness plus the rest of the segment, the
+// particle's swept bound); the time of impact is found by the same conservative
+// advancement, and counts only while the particle approaches the surface. The response is
+// the one above, in the mesh's frame and with the velocity relative to the surface point.
+//
 // With v_t = 0 under static friction and v_n = 0 at rest, a settled cloth neither jitters
 // nor creeps. The Simulation measures the deepest penetration of each chunk before the
 // response; above CollisionOptions::maxPenetration it rolls the chunk back (the state is
