@@ -218,6 +218,35 @@ TEST(Cli, SceneEffectsAndTheirTimesAreReported) {
     EXPECT_TRUE(hanging["effect_cpu_seconds"].contains(e)) << e;
 }
 
+TEST(Cli, CollisionScenesReportContactsPenetrationRollbacksAndTunnelling) {
+  // fast-ball: a small cloth at 100 m/s against a one-triangle wall with dt = 1/60 s:
+  // nothing tunnels. drape and rope-on-pegs: shortened runs, bitwise the same on 1 and 2
+  // threads, with the collision keys and its CPU time. Scenes without obstacles have no keys.
+  const nlohmann::json ball = runJson("run fast-ball");
+  ASSERT_TRUE(ball.is_object());
+  EXPECT_EQ(ball["status"], "ok");
+  EXPECT_EQ(ball["tunnelled"], 0);
+  EXPECT_GT(ball["contacts"].get<int>(), 0);
+  EXPECT_EQ(ball["effects"], (nlohmann::json{"collision"}));
+  for (const char* scene : {"drape --size 16 --steps 2000", "rope-on-pegs --size 32 --steps 3000"}) {
+    const std::string args = std::string("run ") + scene;
+    SCOPED_TRACE(args);
+    const nlohmann::json one = runJson(args + " --threads 1");
+    const nlohmann::json two = runJson(args + " --threads 2");
+    ASSERT_TRUE(one.is_object() && two.is_object());
+    EXPECT_EQ(one["status"], "ok");
+    EXPECT_EQ(one["state_hash"], two["state_hash"]);
+    EXPECT_GT(one["contacts"].get<int>(), 0);
+    EXPECT_LE(one["max_penetration"].get<double>(), 0.0025 + 1e-9);
+    EXPECT_EQ(one["tunnelled"], 0);
+    EXPECT_TRUE(one.contains("rollbacks"));
+    EXPECT_GT(one["effect_cpu_seconds"]["collision"].get<double>(), 0);
+  }
+  const nlohmann::json plain = runJson("run flag --size 8 --steps 5");
+  EXPECT_FALSE(plain.contains("contacts"));
+  EXPECT_FALSE(plain.contains("tunnelled"));
+}
+
 TEST(Cli, OptionsOverrideTheScene) {
   // The built-in flag-wind scene runs its own integrator and step unless told otherwise.
   const nlohmann::json j = runJson("run flag-wind --size 10 --steps 4 --dt 1e-4 --integrator midpoint --drag 0");

@@ -183,6 +183,7 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
   if (o.effects.wind.enabled) names.emplace_back("wind");
   if (o.effects.repulsion.enabled()) names.emplace_back("repulsion");
   if (!o.kinematicPins.empty()) names.emplace_back("kinematic_pins");
+  if (o.collision.any()) names.emplace_back("collision");
   return names;
 }
 
@@ -195,6 +196,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   weft::Simulation<S> sim(std::move(assembled.built), options);
   const std::int64_t steps = weft::sceneStepCount(spec);
   const weft::OutputSpec& output = spec.output;
+  // With obstacles: the start of the run, for counting particles that tunnelled.
+  const std::optional<weft::State<S>> initial =
+      sim.contactSolver() ? std::optional<weft::State<S>>(sim.state()) : std::nullopt;
   const std::string precision = spec.precision == weft::Precision::Float ? "float" : "double";
 
   // Steps go in chunks (a frame after each chunk of `every` steps when writing frames;
@@ -236,6 +240,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (name == "drag") return times.forces.drag;
     if (name == "wind") return times.forces.wind;
     if (name == "repulsion") return times.forces.repulsion;
+    if (name == "collision") return times.collision;
     return times.kinematicPins;
   };
 
@@ -275,6 +280,16 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["state_hash"] = hash;
     j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
     j["lowest_y"] = lowest;
+    if (const weft::ContactSolver<S>* contacts = sim.contactSolver()) {
+      // At the end of the run: particles in contact, the deepest penetration (m); over the
+      // run: chunks rolled back, and particles that ended beyond a thin obstacle or inside one.
+      const weft::ScalarArray<S>& w = model.inverseMass();
+      const double t = state.time - initial->time;
+      j["contacts"] = contacts->countContacts(state.x, w, t);
+      j["max_penetration"] = contacts->penetration(state.x, w, t);
+      j["rollbacks"] = sim.totalCollision().rollbacks;
+      j["tunnelled"] = contacts->countTunnelled(initial->x, state.x, w, 0.0, t);
+    }
     if (!assembled.meshReports.empty()) j["meshes"] = assembled.meshReports;
     if (frames) {
       j["frames_written"] = frames->written();

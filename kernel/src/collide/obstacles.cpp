@@ -461,16 +461,17 @@ V row(const Vec3Array<S>& x, Index i) {
   return {double(x(i, 0)), double(x(i, 1)), double(x(i, 2))};
 }
 
-// Deepest penetration of the point p at time t over every obstacle (0 when clear).
+// Deepest penetration (thickness - distance) of the point p at time t over every obstacle:
+// negative when clear (minus the smallest gap; -infinity when no mesh is within the thickness).
 double pointPenetration(const CollisionOptions& opt, const std::vector<MeshCollider>& meshes, V p, double t) {
   const double h = opt.thickness;
-  double deepest = 0;
+  double deepest = -std::numeric_limits<double>::infinity();
   for (const Obstacle& o : opt.obstacles) {
     V nn;
     deepest = std::max(deepest, h - distance(o, p, nn));
   }
   for (size_t m = 0; m < meshes.size(); ++m)
-    deepest = std::max(deepest, h - meshDistance(meshes[m], toBody(opt.meshes[m], p, t), h));
+    deepest = std::max(deepest, h - meshDistance(meshes[m], toBody(opt.meshes[m], p, t), h + opt.epsilon));
   return deepest;
 }
 

@@ -816,7 +816,9 @@ SceneSpec readSceneFile(const std::string& path) {
 // Built-in scenes
 // ---------------------------------------------------------------------------------------
 
-std::vector<std::string> builtinSceneNames() { return {"flag", "rope", "flag-wind", "hanging-cloth"}; }
+std::vector<std::string> builtinSceneNames() {
+  return {"flag", "rope", "flag-wind", "hanging-cloth", "drape", "rope-on-pegs", "fast-ball"};
+}
 
 SceneSpec builtinSceneSpec(const std::string& name, Index size) {
   SceneSpec scene;
@@ -879,6 +881,59 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     body.rope = ropeSpec(n);
     body.pins.push_back({{0}, std::nullopt, std::nullopt});
     scene.simulation.dt = defaultTimeStep(BuiltinScene::Rope, n);
+  } else if (name == "drape") {
+    // A free 1 m cloth (size x size, default 32) falling from 0.5 m onto a sphere of radius
+    // 0.3 m at the origin, a floor 0.4 m below its centre; 2 s.
+    const Index n = size > 0 ? size : 32;
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::ClothGrid;
+    body.name = "cloth";
+    body.grid = flagSpec(n);
+    body.grid.origin = {-0.5, 0.5, -0.5};
+    scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    scene.steps = static_cast<std::int64_t>(std::ceil(2.0 / scene.simulation.dt));
+    scene.simulation.effects.drag = 1e-3;
+    scene.simulation.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.3));
+    scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
+  } else if (name == "rope-on-pegs") {
+    // A free 1 m rope (size particles, default 64) falling from 0.3 m across three pegs
+    // (capsules along z, radius 3 cm, at x = 0.2, 0.5, 0.8, y = 0), a floor at y = -0.6; 2 s.
+    const Index n = size > 0 ? size : defaultSceneSize(BuiltinScene::Rope);
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::Rope;
+    body.name = "rope";
+    body.rope = ropeSpec(n);
+    body.rope.origin = {0, 0.3, 0};
+    scene.simulation.dt = defaultTimeStep(BuiltinScene::Rope, n);
+    scene.steps = static_cast<std::int64_t>(std::ceil(2.0 / scene.simulation.dt));
+    for (const double x : {0.2, 0.5, 0.8})
+      scene.simulation.collision.obstacles.push_back(Obstacle::capsule({x, 0, -0.2}, {x, 0, 0.2}, 0.03));
+    scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.6, 0}, {0, 1, 0}));
+  } else if (name == "fast-ball") {
+    // The tunnelling case: a small soft cloth (size x size particles, default 4, 5 cm) fired
+    // at 100 m/s along +x at a wall of one triangle in the plane x = 1, dt = 1/60 s (1.7 m
+    // per step); 1 s.
+    const Index n = size > 0 ? size : 4;
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::ClothGrid;
+    body.name = "ball";
+    body.grid = flagSpec(n);
+    body.grid.spacing = 0.05 / static_cast<double>(n - 1);
+    body.grid.origin = {0, 0, -0.025};
+    body.grid.columnAxis = {0, 1, 0};
+    body.grid.rowAxis = {0, 0, 1};
+    body.grid.totalMass = 0.05;
+    body.grid.structural = {2, 0.01};
+    body.grid.shear = {1, 0.005};
+    body.grid.bend = {0.5, 0.002};
+    body.velocity = {100, 0, 0};
+    scene.simulation.dt = 1.0 / 60;
+    scene.steps = 60;
+    MeshObstacle wall;
+    wall.name = "wall";
+    wall.mesh.vertices = {{1, -10, -10}, {1, 10, -10}, {1, 0, 20}};
+    wall.mesh.triangles = {{0, 1, 2}};
+    scene.simulation.collision.meshes.push_back(wall);
   } else {
     std::string list;
     for (const std::string& s : builtinSceneNames()) list += (list.empty() ? "" : ", ") + s;
@@ -963,6 +1018,19 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
   if (scene.simulation.forceStrategy == ForceStrategy::GridStencil && !out.built.model.grid())
     throw SceneError(scene.name + ": force_strategy: grid-stencil needs a scene of a single cloth_grid body, got " +
                      bodiesText(scene));
+  for (size_t k = 0; k < scene.bodies.size(); ++k) {  // initial velocities of the free particles
+    const Vec3d& v = scene.bodies[k].velocity;
+    if (v.x == 0 && v.y == 0 && v.z == 0) continue;
+    if (!(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)))
+      throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be finite, got " + fmt(v));
+    const Index end = k + 1 < scene.bodies.size() ? out.firstParticle[k + 1] : out.built.model.particleCount();
+    for (Index i = out.firstParticle[k]; i < end; ++i)
+      if (!out.built.model.isPinned(i)) {
+        out.built.state.v(i, 0) = static_cast<S>(v.x);
+        out.built.state.v(i, 1) = static_cast<S>(v.y);
+        out.built.state.v(i, 2) = static_cast<S>(v.z);
+      }
+  }
   std::vector<KinematicPins> pins = std::move(out.options.kinematicPins);
   out.options = scene.simulation;  // its own kinematicPins (C++ scenes, global indices) first
   for (KinematicPins& p : pins) out.options.kinematicPins.push_back(std::move(p));
