@@ -220,7 +220,7 @@ TEST(Cli, SceneEffectsAndTheirTimesAreReported) {
 
 TEST(Cli, CollisionScenesReportContactsPenetrationRollbacksAndTunnelling) {
   // fast-ball: a small cloth at 100 m/s against a one-triangle wall with dt = 1/60 s:
-  // nothing tunnels. drape and rope-on-pegs: shortened runs, bitwise the same on 1 and 2
+  // nothing tunnels. drape, drape-mesh and rope-on-pegs: shortened runs, bitwise the same on 1 and 2
   // threads, with the collision keys and its CPU time. Scenes without obstacles have no keys.
   const nlohmann::json ball = runJson("run fast-ball");
   ASSERT_TRUE(ball.is_object());
@@ -228,7 +228,8 @@ TEST(Cli, CollisionScenesReportContactsPenetrationRollbacksAndTunnelling) {
   EXPECT_EQ(ball["tunnelled"], 0);
   EXPECT_GT(ball["contacts"].get<int>(), 0);
   EXPECT_EQ(ball["effects"], (nlohmann::json{"collision"}));
-  for (const char* scene : {"drape --size 16 --steps 2000", "rope-on-pegs --size 32 --steps 3000"}) {
+  for (const char* scene :
+       {"drape --size 16 --steps 2000", "drape-mesh --size 16 --steps 2000", "rope-on-pegs --size 32 --steps 3000"}) {
     const std::string args = std::string("run ") + scene;
     SCOPED_TRACE(args);
     const nlohmann::json one = runJson(args + " --threads 1");

@@ -36,7 +36,8 @@ namespace {
 using ::testing::HasSubstr;
 
 const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
-const std::vector<std::string> kExamples = {"rope", "flag-wind", "cloth-mesh", "hanging-cloth"};
+const std::vector<std::string> kExamples = {"rope",       "flag-wind",    "cloth-mesh", "hanging-cloth", "drape",
+                                            "drape-mesh", "rope-on-pegs", "fast-ball",  "tablecloth"};
 
 std::string examplePath(const std::string& name) { return kScenes + "/" + name + ".json"; }
 
@@ -132,6 +133,13 @@ std::map<std::string, std::set<std::string>> exampleKeys() {
     if (root.contains("effects"))
       for (const char* effect : {"wind", "repulsion"})
         if (root["effects"].contains(effect)) keys(effect, root["effects"][effect]);
+    if (root.contains("collision")) {
+      keys("collision", root["collision"]);
+      for (const auto& o : root["collision"]["obstacles"]) {
+        keys("obstacle." + o["type"].get<std::string>(), o);
+        if (o.contains("path")) keys("path", o["path"]);
+      }
+    }
     for (const auto& body : root["bodies"]) {
       const std::string type = body["type"];
       keys(type, body);
@@ -159,7 +167,7 @@ TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
   const std::string tail = R"(, "dt": 0.001, "steps": 1})";
   const auto body = [&](const std::string& fields) { return R"({"bodies": [{)" + fields + "}]" + tail; };
   const std::string mesh = R"("type": "cloth_mesh", "mesh": "meshes/cloth.obj")";
-  const std::map<std::string, std::string> probes = {
+  std::map<std::string, std::string> probes = {
       {"top", R"({"zz_unknown": 1, "bodies": [{"type": "rope"}])" + tail},
       {"rope", body(R"("type": "rope", "zz_unknown": 1)")},
       {"cloth_grid", body(R"("type": "cloth_grid", "zz_unknown": 1)")},
@@ -177,7 +185,11 @@ TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
       {"integration", R"({"bodies": [{"type": "rope"}], "integration": {"zz_unknown": 1})" + tail},
       {"stability", R"({"bodies": [{"type": "rope"}], "stability": {"zz_unknown": 1})" + tail},
       {"output", R"({"bodies": [{"type": "rope"}], "output": {"zz_unknown": 1})" + tail},
+      {"collision", R"({"bodies": [{"type": "rope"}], "collision": {"zz_unknown": 1})" + tail},
   };
+  for (const char* type : {"plane", "sphere", "capsule", "box", "mesh"})
+    probes["obstacle." + std::string(type)] = R"({"bodies": [{"type": "rope"}], "collision": {"obstacles": [{"type": ")" +
+                                               std::string(type) + R"(", "zz_unknown": 1}]})" + tail;
   auto used = exampleKeys();
   EXPECT_TRUE(used["pin"].count("(index)")) << "no example pins a particle by a bare index";
   for (const auto& [where, json] : probes) {
@@ -190,24 +202,69 @@ TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
       bool found = used[where].count(key) > 0;
       if (!found && (key == "total_mass" || key == "particle_mass"))
         for (const char* kind : {"rope", "cloth_grid", "cloth_mesh"}) found = found || used[kind].count(key) > 0;
+      // An obstacle's surface keys are the same for every kind: each in some obstacle.
+      if (!found && where.rfind("obstacle.", 0) == 0 &&
+          (key == "restitution" || key == "static_friction" || key == "kinetic_friction"))
+        for (const char* kind : {"plane", "sphere", "capsule", "box", "mesh"})
+          found = found || used["obstacle." + std::string(kind)].count(key) > 0;
       EXPECT_TRUE(found) << "no example uses " << where << " key '" << key << "'";
     }
   }
 }
 
+bool same(const Vec3d& a, const Vec3d& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+
+/// The same obstacles, meshes and collision parameters, bit for bit.
+void expectSameCollision(const CollisionOptions& a, const CollisionOptions& b) {
+  EXPECT_EQ(a.thickness, b.thickness);
+  EXPECT_EQ(a.continuous, b.continuous);
+  EXPECT_EQ(a.edges, b.edges);
+  EXPECT_EQ(a.epsilon, b.epsilon);
+  EXPECT_EQ(a.restingSpeed, b.restingSpeed);
+  EXPECT_EQ(a.maxPenetration, b.maxPenetration);
+  EXPECT_EQ(a.maxHalvings, b.maxHalvings);
+  ASSERT_EQ(a.obstacles.size(), b.obstacles.size());
+  for (size_t k = 0; k < a.obstacles.size(); ++k) {
+    SCOPED_TRACE("obstacle " + std::to_string(k));
+    const Obstacle &p = a.obstacles[k], &q = b.obstacles[k];
+    EXPECT_EQ(p.kind, q.kind);
+    EXPECT_TRUE(same(p.point, q.point) && same(p.normal, q.normal) && same(p.end, q.end) &&
+                same(p.halfExtents, q.halfExtents));
+    EXPECT_EQ(p.radius, q.radius);
+    EXPECT_EQ(p.restitution, q.restitution);
+    EXPECT_EQ(p.staticFriction, q.staticFriction);
+    EXPECT_EQ(p.kineticFriction, q.kineticFriction);
+  }
+  ASSERT_EQ(a.meshes.size(), b.meshes.size());
+  for (size_t k = 0; k < a.meshes.size(); ++k) {
+    SCOPED_TRACE("mesh " + std::to_string(k));
+    const MeshObstacle &p = a.meshes[k], &q = b.meshes[k];
+    EXPECT_EQ(p.name, q.name);
+    ASSERT_EQ(p.mesh.vertices.size(), q.mesh.vertices.size());
+    for (size_t i = 0; i < p.mesh.vertices.size(); ++i)
+      ASSERT_TRUE(same(p.mesh.vertices[i], q.mesh.vertices[i])) << "vertex " << i;
+    EXPECT_EQ(p.mesh.triangles, q.mesh.triangles);
+    EXPECT_EQ(p.path.has_value(), q.path.has_value());
+    EXPECT_EQ(p.restitution, q.restitution);
+    EXPECT_EQ(p.staticFriction, q.staticFriction);
+    EXPECT_EQ(p.kineticFriction, q.kineticFriction);
+  }
+}
+
 template <class S>
-void expectTwins(const SceneSpec& file, const SceneSpec& builtin) {
+void expectTwins(const SceneSpec& file, const SceneSpec& builtin, int steps = 4) {
   SCOPED_TRACE(sizeof(S) == 4 ? "float" : "double");
   EXPECT_EQ(sceneStepCount(file), sceneStepCount(builtin));
   AssembledScene<S> a = assembleScene<S>(file), b = assembleScene<S>(builtin);
+  expectSameCollision(a.options.collision, b.options.collision);
   a.options.threads = b.options.threads = 2;
   Simulation<S> simA(std::move(a.built), a.options), simB(std::move(b.built), b.options);
   ASSERT_EQ(simA.model().particleCount(), simB.model().particleCount());
   EXPECT_EQ(simA.model().pinnedCount(), simB.model().pinnedCount());
   EXPECT_EQ(simA.model().springCount(), simB.model().springCount());
   EXPECT_EQ(simA.options().kinematicPins.size(), simB.options().kinematicPins.size());
-  ASSERT_TRUE(simA.run(4).ok());
-  ASSERT_TRUE(simB.run(4).ok());
+  ASSERT_TRUE(simA.run(steps).ok());
+  ASSERT_TRUE(simB.run(steps).ok());
   EXPECT_TRUE(simA.state().x == simB.state().x) << "positions differ";
   EXPECT_TRUE(simA.state().v == simB.state().v) << "velocities differ";
   EXPECT_EQ(stateHash(simA.state()), stateHash(simB.state()));
@@ -228,6 +285,28 @@ TEST(SceneExamples, HangingClothFileStepsLikeTheBuiltinSceneOfSize33BitForBit) {
   EXPECT_EQ(file.simulation.effects.repulsion.radius, builtin.simulation.effects.repulsion.radius);
   expectTwins<float>(file, builtin);
   expectTwins<double>(file, builtin);
+}
+
+TEST(SceneExamples, CollisionScenesStepLikeTheBuiltinScenesBitForBit) {
+  // drape-mesh imports tools/scenes/meshes/torus.obj from the file and the built-in scene
+  // from the copy embedded in the library: the same bytes, so the same mesh. fast-ball runs
+  // through its impact on the wall (step 36 at 100 m/s); the others only start to fall.
+  for (const std::string name : {"drape", "drape-mesh", "rope-on-pegs", "fast-ball"}) {
+    SCOPED_TRACE(name);
+    const SceneSpec file = readSceneFile(examplePath(name));
+    const SceneSpec builtin = builtinSceneSpec(name);
+    const int steps = name == "fast-ball" ? 60 : 4;
+    expectTwins<float>(file, builtin, steps);
+    expectTwins<double>(file, builtin, steps);
+  }
+}
+
+TEST(SceneExamples, TheEmbeddedTorusIsTheExampleFile) {
+  std::ifstream in(kScenes + "/meshes/torus.obj", std::ios::binary);
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const SceneSpec builtin = builtinSceneSpec("drape-mesh");
+  ASSERT_EQ(builtin.meshObstacles.size(), 1u);
+  EXPECT_EQ(builtin.meshObstacles[0].meshContents, file);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -376,6 +455,106 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   ASSERT_EQ(a.options.kinematicPins.size(), 1u);
   EXPECT_EQ(a.options.kinematicPins[0].particles, (std::vector<Index>{0, 1}));
   EXPECT_EQ(a.meshReports.size(), 1u);
+}
+
+TEST(SceneReader, CollisionFieldsLandInTheirMembers) {
+  const std::string json = R"({
+    "bodies": [{"type": "rope", "velocity": [1, 2, 3]}], "dt": 0.001, "steps": 1,
+    "collision": {
+      "thickness": 0.01, "continuous": false, "edges": false, "epsilon": 1e-4, "resting_speed": 0.2,
+      "max_penetration": 0.003, "max_halvings": 4,
+      "obstacles": [
+        {"type": "plane", "point": [0, -1, 0], "normal": [0, 2, 0], "restitution": 0.5, "static_friction": 0.7,
+         "kinetic_friction": 0.6},
+        {"type": "sphere", "center": [1, 2, 3], "radius": 0.25},
+        {"type": "capsule", "a": [0, 0, -1], "b": [0, 0, 1], "radius": 0.05},
+        {"type": "mesh", "name": "w", "mesh": "meshes/wall.obj", "weld_tolerance": 0.01, "scale": 2,
+         "translate": [0, 1, 0], "path": {"velocity": [0, 0, 1], "end": 3}, "restitution": 0.25,
+         "static_friction": 0.2},
+        {"type": "box", "center": [4, 5, 6], "half_extents": [1, 2, 3], "radius": 0.5}
+      ]
+    }
+  })";
+  const SceneSpec s = parseScene(json, "collision.json", kScenes);
+  EXPECT_TRUE(same(s.bodies[0].velocity, {1, 2, 3}));
+  const CollisionOptions& c = s.simulation.collision;
+  EXPECT_EQ(c.thickness, 0.01);
+  EXPECT_FALSE(c.continuous);
+  EXPECT_FALSE(c.edges);
+  EXPECT_EQ(c.epsilon, 1e-4);
+  EXPECT_EQ(c.restingSpeed, 0.2);
+  EXPECT_EQ(c.maxPenetration, 0.003);
+  EXPECT_EQ(c.maxHalvings, 4);
+  ASSERT_EQ(c.obstacles.size(), 4u);  // the analytic ones, in file order
+  EXPECT_EQ(c.obstacles[0].kind, ObstacleKind::Plane);
+  EXPECT_TRUE(same(c.obstacles[0].point, {0, -1, 0}) && same(c.obstacles[0].normal, {0, 2, 0}));
+  EXPECT_EQ(c.obstacles[0].restitution, 0.5);
+  EXPECT_EQ(c.obstacles[0].staticFriction, 0.7);
+  EXPECT_EQ(c.obstacles[0].kineticFriction, 0.6);
+  EXPECT_EQ(c.obstacles[1].kind, ObstacleKind::Sphere);
+  EXPECT_TRUE(same(c.obstacles[1].point, {1, 2, 3}));
+  EXPECT_EQ(c.obstacles[1].radius, 0.25);
+  EXPECT_EQ(c.obstacles[2].kind, ObstacleKind::Capsule);
+  EXPECT_TRUE(same(c.obstacles[2].point, {0, 0, -1}) && same(c.obstacles[2].end, {0, 0, 1}));
+  EXPECT_EQ(c.obstacles[2].radius, 0.05);
+  EXPECT_EQ(c.obstacles[3].kind, ObstacleKind::Box);
+  EXPECT_TRUE(same(c.obstacles[3].point, {4, 5, 6}) && same(c.obstacles[3].halfExtents, {1, 2, 3}));
+  EXPECT_EQ(c.obstacles[3].radius, 0.5);
+  EXPECT_TRUE(c.meshes.empty()) << "mesh obstacles are read when the scene is assembled";
+  ASSERT_EQ(s.meshObstacles.size(), 1u);
+  const MeshObstacleSpec& m = s.meshObstacles[0];
+  EXPECT_EQ(m.obstacle.name, "w");
+  EXPECT_EQ(m.meshFile, kScenes + "/meshes/wall.obj");
+  EXPECT_EQ(m.clean.weldTolerance, 0.01);
+  EXPECT_EQ(m.scale, 2);
+  EXPECT_TRUE(same(m.translate, {0, 1, 0}));
+  ASSERT_TRUE(m.obstacle.path);
+  EXPECT_TRUE(same(m.obstacle.path->velocity, {0, 0, 1}));
+  EXPECT_EQ(m.obstacle.path->endTime, 3);
+  EXPECT_EQ(m.obstacle.restitution, 0.25);
+  EXPECT_EQ(m.obstacle.staticFriction, 0.2);
+  EXPECT_EQ(m.obstacle.kineticFriction, 0.2) << "kinetic friction defaults to min(0.3, static friction)";
+
+  // Assembly loads the mesh, scales and moves it, and hands it to the simulation.
+  const AssembledScene<double> a = assembleScene<double>(s);
+  ASSERT_EQ(a.options.collision.meshes.size(), 1u);
+  const TriangleMesh& wall = a.options.collision.meshes[0].mesh;
+  ASSERT_EQ(wall.vertices.size(), 3u);
+  EXPECT_TRUE(same(wall.vertices[0], {2, -19, -20}));  // 2 (1, -10, -10) + (0, 1, 0)
+  EXPECT_EQ(a.options.collision.meshes[0].name, "w");
+  EXPECT_EQ(a.meshReports.size(), 1u);
+  EXPECT_TRUE(same({a.built.state.v(1, 0), a.built.state.v(1, 1), a.built.state.v(1, 2)}, {1, 2, 3}));
+
+  // Defaults: thickness 5 mm, epsilon = min(1e-5, thickness / 2).
+  const SceneSpec thin = parseScene(
+      R"({"bodies": [{"type": "rope"}], "dt": 0.001, "steps": 1,
+          "collision": {"thickness": 1e-5, "obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": 1}]}})",
+      "thin.json", kScenes);
+  EXPECT_EQ(thin.simulation.collision.epsilon, 5e-6);
+  EXPECT_TRUE(thin.simulation.collision.continuous);
+}
+
+TEST(SceneBadFiles, MeshObstaclesThatCannotBeReadFailAtAssembly) {
+  const std::string garbage = writeTemp("garbage.obj", "this is not a mesh\n");
+  const std::string points = writeTemp("points.obj", "v 0 0 0\nv 1 0 0\np 1\n");
+  for (const std::string& file : {garbage, points}) {
+    const SceneSpec s = parseScene(R"({"name": "obstacle-file", "bodies": [{"type": "rope"}], "dt": 0.001,
+        "steps": 1, "collision": {"obstacles": [{"type": "mesh", "name": "rock", "mesh": ")" + file + R"("}]}})");
+    const std::string message = sceneError([&] { assembleScene<double>(s); });
+    EXPECT_THAT(message, HasSubstr("obstacle-file: mesh obstacle 0 (rock): mesh file '" + file + "'"));
+  }
+  // A scale that sends the vertices to infinity, and a float scene's velocity out of range.
+  const SceneSpec huge = parseScene(R"({"name": "huge", "bodies": [{"type": "rope"}], "dt": 0.001, "steps": 1,
+      "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj", "scale": 1e308}]}})",
+                                    "huge.json", kScenes);
+  EXPECT_THAT(sceneError([&] { assembleScene<double>(huge); }),
+              HasSubstr("huge: mesh obstacle 0 (wall.obj): a vertex scaled and translated is not finite"));
+  const SceneSpec fast =
+      parseScene(R"({"name": "fast", "bodies": [{"type": "rope", "velocity": [1e39, 0, 0]}], "dt": 0.001,
+                     "steps": 1})");
+  EXPECT_THAT(sceneError([&] { assembleScene<float>(fast); }),
+              HasSubstr("fast: bodies[0].velocity: must be within the range of float precision"));
+  EXPECT_NO_THROW(assembleScene<double>(fast));
 }
 
 TEST(SceneReader, DefaultsAndDuration) {
@@ -579,6 +758,84 @@ const std::vector<BadScene>& badScenes() {
        grid(R"(, "pins": [{"particles": [0, 1], "path": {}}, {"box": {"min": [-1, -1, -1], "max": [0, 1, 1]},
                            "path": {"velocity": [1, 0, 0]}}])"),
        "bodies[0].pins[1]", "particle 0 is already moved by pins[0]"},
+      {"velocity_of_two", grid(R"(, "velocity": [1, 2])"), "bodies[0].velocity", "[1,2]"},
+      // Collision
+      {"collision_array", top(R"(, "collision": [])"), "collision", "must be an object, got array []"},
+      {"collision_without_obstacles", top(R"(, "collision": {"thickness": 0.01})"), "collision.obstacles",
+       "is required"},
+      {"collision_no_obstacles", top(R"(, "collision": {"obstacles": []})"), "collision.obstacles", "[]"},
+      {"collision_unknown_key", top(R"(, "collision": {"obstacles": [], "thicknes": 1})"), "collision.thicknes",
+       "allowed keys here: obstacles, thickness, continuous"},
+      {"collision_negative_thickness", top(R"(, "collision": {"thickness": -0.01, "obstacles": []})"),
+       "collision.thickness", "got -0.01"},
+      {"collision_epsilon_above_thickness",
+       top(R"(, "collision": {"thickness": 0.01, "epsilon": 0.02, "obstacles": []})"), "collision.epsilon",
+       "must be < thickness (0.01 m), got 0.02"},
+      {"collision_halvings_out_of_range", top(R"(, "collision": {"max_halvings": 31, "obstacles": []})"),
+       "collision.max_halvings", "must be in [0, 30], got 31"},
+      {"collision_halvings_fraction", top(R"(, "collision": {"max_halvings": 2.5, "obstacles": []})"),
+       "collision.max_halvings", "must be an integer, got number 2.5"},
+      {"collision_continuous_string", top(R"(, "collision": {"continuous": "yes", "obstacles": []})"),
+       "collision.continuous", R"(string "yes")"},
+      {"collision_negative_resting_speed", top(R"(, "collision": {"resting_speed": -1, "obstacles": []})"),
+       "collision.resting_speed", "got -1"},
+      {"obstacle_number", top(R"(, "collision": {"obstacles": [3]})"), "collision.obstacles[0]", "number 3"},
+      {"obstacle_without_type", top(R"(, "collision": {"obstacles": [{"radius": 1}]})"),
+       "collision.obstacles[0].type", "is required: plane, sphere, capsule, box or mesh"},
+      {"obstacle_unknown_type", top(R"(, "collision": {"obstacles": [{"type": "cone"}]})"),
+       "collision.obstacles[0].type", R"(got "cone")"},
+      {"obstacle_unknown_key",
+       top(R"(, "collision": {"obstacles": [{"type": "sphere", "centre": [0, 0, 0], "radius": 1}]})"),
+       "collision.obstacles[0].centre", "allowed keys here: type, center, radius"},
+      {"sphere_without_radius", top(R"(, "collision": {"obstacles": [{"type": "sphere", "center": [0, 0, 0]}]})"),
+       "collision.obstacles[0].radius", "is required for a sphere obstacle"},
+      {"sphere_zero_radius",
+       top(R"(, "collision": {"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": 0}]})"),
+       "collision.obstacles[0].radius", "must be > 0 m, got 0"},
+      {"sphere_center_of_two",
+       top(R"(, "collision": {"obstacles": [{"type": "sphere", "center": [0, 0], "radius": 1}]})"),
+       "collision.obstacles[0].center", "[0,0]"},
+      {"plane_zero_normal",
+       top(R"(, "collision": {"obstacles": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 0]}]})"),
+       "collision.obstacles[0].normal", "[0,0,0]"},
+      {"capsule_without_b", top(R"(, "collision": {"obstacles": [{"type": "capsule", "a": [0, 0, 0], "radius": 1}]})"),
+       "collision.obstacles[0].b", "is required for a capsule obstacle"},
+      {"box_flat",
+       top(R"(, "collision": {"obstacles": [{"type": "box", "center": [0, 0, 0], "half_extents": [1, 0, 1]}]})"),
+       "collision.obstacles[0].half_extents", "[1, 0, 1]"},
+      {"box_rounder_than_it_is",
+       top(R"(, "collision": {"obstacles": [{"type": "box", "center": [0, 0, 0], "half_extents": [1, 0.2, 1],
+                                             "radius": 0.5}]})"),
+       "collision.obstacles[0].radius", "smallest half extent (0.2 m), got 0.5"},
+      {"restitution_above_one",
+       top(R"(, "collision": {"obstacles": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0],
+                                             "restitution": 1.5}]})"),
+       "collision.obstacles[0].restitution", "must be <= 1, got 1.5"},
+      {"negative_static_friction",
+       top(R"(, "collision": {"obstacles": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0],
+                                             "static_friction": -0.1}]})"),
+       "collision.obstacles[0].static_friction", "got -0.1"},
+      {"kinetic_above_static_friction",
+       top(R"(, "collision": {"obstacles": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0],
+                                             "static_friction": 0.4, "kinetic_friction": 0.9}]})"),
+       "collision.obstacles[0].kinetic_friction", "must be <= static_friction (0.4), got 0.9"},
+      {"mesh_obstacle_without_mesh", top(R"(, "collision": {"obstacles": [{"type": "mesh"}]})"),
+       "collision.obstacles[0].mesh", "is required for a mesh obstacle"},
+      {"mesh_obstacle_missing_file",
+       top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "no-such-wall.obj"}]})"),
+       "collision.obstacles[0].mesh", R"(cannot read the mesh file "no-such-wall.obj")"},
+      {"mesh_obstacle_directory", top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes"}]})"),
+       "collision.obstacles[0].mesh", "is a directory"},
+      {"mesh_obstacle_zero_scale",
+       top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj", "scale": 0}]})"),
+       "collision.obstacles[0].scale", "must be > 0, got 0"},
+      {"mesh_obstacle_path_end_before_start",
+       top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj",
+                                             "path": {"start": 2, "end": 1}}]})"),
+       "collision.obstacles[0].path.end", "must be >= start (2 s), got 1"},
+      {"mesh_obstacle_unknown_key",
+       top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj", "radius": 1}]})"),
+       "collision.obstacles[0].radius", "allowed keys here: type, name, mesh"},
   };
   return cases;
 }

@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   cmd->add_option(
       "scene", run.scene,
       "A built-in scene (flag: 64 x 64 cloth pinned at two corners; rope; flag-wind: a flag on a pole "
-      "in gusty wind; hanging-cloth: cloth on a turning bar; drape: cloth onto a sphere; rope-on-pegs: a rope "
+      "in gusty wind; hanging-cloth: cloth on a turning bar; drape: cloth onto a sphere; drape-mesh: cloth onto an imported torus mesh; rope-on-pegs: a rope "
       "across three capsules; fast-ball: 100 m/s at a one-triangle wall) or a JSON scene file "
       "(docs/scenes.md). "
       "Options given below override the scene's values");

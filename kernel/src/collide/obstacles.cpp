@@ -164,7 +164,7 @@ double meshImpact(const MeshCollider& c, V b0, V b1, double h, double eps) {
   double s = 0;
   for (int k = 0; k < 64; ++k) {
     const V p = b0 + s * d;
-    V q;
+    V q{0, 0, 0};
     const double dist = meshDistance(c, p, h + eps + (1 - s) * length, &q);
     const double gap = dist - h;
     // An impact only while approaching the surface (a particle leaving a resting contact
@@ -179,7 +179,7 @@ double meshImpact(const MeshCollider& c, V b0, V b1, double h, double eps) {
 
 // Moves p (body frame) out of the thickened mesh to distance h, on the side of `side`.
 V pushOutOfMesh(const MeshCollider& c, V p, V side, double h) {
-  V q;
+  V q{0, 0, 0};
   const double dist = meshDistance(c, p, h, &q);
   if (!(dist < h)) return p;
   V dir = dist > 0 ? (1 / dist) * (p - q) : side;
@@ -247,7 +247,7 @@ V respondMesh(const CollisionOptions& opt, const MeshObstacle& m, const MeshColl
   const double h = opt.thickness;
   const V b0 = toBody(m, p0, t0), b1 = toBody(m, p1, t1), d = b1 - b0;
   const V hit = b0 + s * d;
-  V q;
+  V q{0, 0, 0};
   Index tri = -1;
   const double dist = meshDistance(c, hit, std::numeric_limits<double>::infinity(), &q, &tri);
   V n;

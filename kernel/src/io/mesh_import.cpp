@@ -43,16 +43,11 @@ void checkReadable(const std::string& path) {
   if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
 }
 
-}  // namespace
+// No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
+constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_PreTransformVertices;
 
-TriangleMesh loadMesh(const std::string& path) {
-  checkReadable(path);
-  Assimp::Importer importer;
-  // A file with bones but no meshes must not turn into assimp's generated bone geometry.
-  importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
-  // No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
-  const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices);
-  if (scene == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+/// Every triangle of an imported scene; `path` names the source in messages.
+TriangleMesh collectTriangles(const aiScene* scene, const std::string& path) {
 
   constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
   TriangleMesh mesh;
@@ -97,19 +92,60 @@ TriangleMesh loadMesh(const std::string& path) {
   return mesh;
 }
 
-TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options, MeshReport* report) {
+void configure(Assimp::Importer& importer) {
+  // A file with bones but no meshes must not turn into assimp's generated bone geometry.
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
+}
+
+TriangleMesh cleaned(const TriangleMesh& raw, const std::string& path, const MeshCleanOptions& options,
+                     MeshReport* report) {
+  try {
+    return cleanMesh(raw, options, report);
+  } catch (const std::invalid_argument& e) {
+    fail(path, e.what());
+  }
+}
+
+void checkCleanOptions(const MeshCleanOptions& options) {
   if (!(std::isfinite(options.weldTolerance) && options.weldTolerance >= 0)) {
     std::ostringstream msg;
     msg.precision(17);
     msg << "loadCleanMesh: MeshCleanOptions.weldTolerance must be finite and >= 0 (m), got " << options.weldTolerance;
     throw std::invalid_argument(msg.str());
   }
-  const TriangleMesh raw = loadMesh(path);
-  try {
-    return cleanMesh(raw, options, report);
-  } catch (const std::invalid_argument& e) {
-    fail(path, e.what());
-  }
+}
+
+}  // namespace
+
+TriangleMesh loadMesh(const std::string& path) {
+  checkReadable(path);
+  Assimp::Importer importer;
+  configure(importer);
+  const aiScene* scene = importer.ReadFile(path, kImportFlags);
+  if (scene == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+  return collectTriangles(scene, path);
+}
+
+TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
+  if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
+  const std::string extension = std::filesystem::path(name).extension().string();
+  const std::string hint = extension.empty() ? std::string() : extension.substr(1);
+  Assimp::Importer importer;
+  configure(importer);
+  const aiScene* scene = importer.ReadFileFromMemory(contents.data(), contents.size(), kImportFlags, hint.c_str());
+  if (scene == nullptr) fail(name, std::string("assimp cannot read it: ") + importer.GetErrorString());
+  return collectTriangles(scene, name);
+}
+
+TriangleMesh loadCleanMeshFromMemory(const std::string& contents, const std::string& name,
+                                     const MeshCleanOptions& options, MeshReport* report) {
+  checkCleanOptions(options);
+  return cleaned(loadMeshFromMemory(contents, name), name, options, report);
+}
+
+TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options, MeshReport* report) {
+  checkCleanOptions(options);
+  return cleaned(loadMesh(path), path, options, report);
 }
 
 }  // namespace weft

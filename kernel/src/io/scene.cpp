@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "builtin_meshes.hpp"
 #include "weft/io/mesh_import.hpp"
 #include "weft/scene/builtin_scenes.hpp"
 
@@ -531,7 +532,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     b.kind = BodyKind::Rope;
     r.object(j, f,
              {"type", "name", "particles", "origin", "direction", "length", "total_mass", "particle_mass", "materials",
-              "bend_springs", "pins"});
+              "bend_springs", "pins", "velocity"});
     RopeSpec& s = b.rope;
     s.particleCount = static_cast<Index>(r.integer(j, f, "particles", s.particleCount, 2, 1 << 24));
     s.origin = r.vector(j, f, "origin", s.origin);
@@ -552,7 +553,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     b.kind = BodyKind::ClothGrid;
     r.object(j, f,
              {"type", "name", "width", "height", "origin", "row_axis", "column_axis", "spacing", "total_mass",
-              "particle_mass", "materials", "shear_springs", "bend_springs", "pins"});
+              "particle_mass", "materials", "shear_springs", "bend_springs", "pins", "velocity"});
     ClothGridSpec& s = b.grid;
     s.width = static_cast<Index>(r.integer(j, f, "width", s.width, 2, 1 << 15));
     s.height = static_cast<Index>(r.integer(j, f, "height", s.height, 2, 1 << 15));
@@ -591,7 +592,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     b.kind = BodyKind::ClothMesh;
     r.object(j, f,
              {"type", "name", "mesh", "weld_tolerance", "scale", "translate", "total_mass", "areal_density",
-              "materials", "bend_springs", "pins"});
+              "materials", "bend_springs", "pins", "velocity"});
     if (!j.contains("mesh")) r.fail(Reader::join(f, "mesh"), "is required: the path of the mesh file");
     const std::string mesh = r.pathString(j, f, "mesh");
     const std::filesystem::path p(mesh);
@@ -613,6 +614,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
       s.bend = r.material(j["materials"], fm, "bend", s.bend);
     }
   }
+  b.velocity = r.vector(j, f, "velocity", b.velocity);
   b.pins = readPins(r, j, f, geometry ? &*geometry : nullptr);
   return b;
 }
@@ -653,6 +655,102 @@ ParticleEffects readEffects(const Reader& r, const Json& j, const std::string& f
     e.repulsion.stiffness = r.number(rep, fr, "stiffness", 0, 0, false, " N/m");
   }
   return e;
+}
+
+/// An obstacle's surface: restitution in [0, 1], friction coefficients mu_k <= mu_s.
+template <class T>
+void readSurface(const Reader& r, const Json& j, const std::string& f, T& o) {
+  o.restitution = r.number(j, f, "restitution", o.restitution, 0, true, "");
+  if (o.restitution > 1) r.fail(Reader::join(f, "restitution"), "must be <= 1, got " + shortDump(j["restitution"]));
+  o.staticFriction = r.number(j, f, "static_friction", o.staticFriction, 0, true, "");
+  o.kineticFriction = r.number(j, f, "kinetic_friction", std::min(o.kineticFriction, o.staticFriction), 0, true, "");
+  if (o.kineticFriction > o.staticFriction)
+    r.fail(Reader::join(f, "kinetic_friction"), "must be <= static_friction (" + fmt(o.staticFriction) + "), got " +
+                                                    fmt(o.kineticFriction));
+}
+
+/// The `collision` section: options, analytic obstacles into `c`, mesh obstacles (read at
+/// assembly) into `meshes`.
+void readCollision(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory,
+                   CollisionOptions& c, std::vector<MeshObstacleSpec>& meshes) {
+  r.object(j, f,
+           {"obstacles", "thickness", "continuous", "edges", "epsilon", "resting_speed", "max_penetration",
+            "max_halvings"});
+  c.thickness = r.number(j, f, "thickness", c.thickness, 0, false, " m");
+  c.continuous = r.boolean(j, f, "continuous", c.continuous);
+  c.edges = r.boolean(j, f, "edges", c.edges);
+  c.epsilon = r.number(j, f, "epsilon", std::min(c.epsilon, 0.5 * c.thickness), 0, false, " m");
+  if (!(c.epsilon < c.thickness))
+    r.fail(Reader::join(f, "epsilon"),
+           "must be < thickness (" + fmt(c.thickness) + " m), got " + fmt(c.epsilon));
+  c.restingSpeed = r.number(j, f, "resting_speed", c.restingSpeed, 0, true, " m/s");
+  c.maxPenetration = r.number(j, f, "max_penetration", c.maxPenetration, 0, true, " m");
+  c.maxHalvings = static_cast<int>(r.integer(j, f, "max_halvings", c.maxHalvings, 0, 30));
+  if (!j.contains("obstacles")) r.fail(Reader::join(f, "obstacles"), "is required: a non-empty array of obstacles");
+  const std::string fo = Reader::join(f, "obstacles");
+  const Json& list = j["obstacles"];
+  if (!list.is_array() || list.empty())
+    r.fail(fo, std::string("must be a non-empty array, got ") + typeName(list) + " " + shortDump(list));
+  for (size_t k = 0; k < list.size(); ++k) {
+    const std::string fk = fo + "[" + std::to_string(k) + "]";
+    const Json& e = list[k];
+    if (!e.is_object()) r.fail(fk, std::string("must be an object, got ") + typeName(e) + " " + shortDump(e));
+    if (!e.contains("type"))
+      r.fail(Reader::join(fk, "type"), "is required: plane, sphere, capsule, box or mesh");
+    const std::string type = r.choice(e, fk, "type", "", {"plane", "sphere", "capsule", "box", "mesh"});
+    const auto require = [&](std::initializer_list<const char*> needed) {
+      for (const char* key : needed)
+        if (!e.contains(key)) r.fail(Reader::join(fk, key), "is required for a " + type + " obstacle");
+    };
+    if (type == "mesh") {
+      r.object(e, fk,
+               {"type", "name", "mesh", "weld_tolerance", "scale", "translate", "path", "restitution",
+                "static_friction", "kinetic_friction"});
+      require({"mesh"});
+      MeshObstacleSpec m;
+      const std::string mesh = r.pathString(e, fk, "mesh");
+      const std::filesystem::path p(mesh);
+      m.meshFile = p.is_absolute() ? mesh : (std::filesystem::path(baseDirectory) / p).lexically_normal().string();
+      checkMeshFile(r, e, fk, m.meshFile);
+      m.obstacle.name = r.string(e, fk, "name", p.filename().string());
+      m.clean.weldTolerance = r.number(e, fk, "weld_tolerance", m.clean.weldTolerance, 0, true, " m");
+      m.scale = r.number(e, fk, "scale", m.scale, 0, false, "");
+      m.translate = r.vector(e, fk, "translate", m.translate);
+      if (e.contains("path")) m.obstacle.path = readPath(r, e["path"], Reader::join(fk, "path"));
+      readSurface(r, e, fk, m.obstacle);
+      meshes.push_back(std::move(m));
+      continue;
+    }
+    Obstacle o;
+    if (type == "plane") {
+      r.object(e, fk, {"type", "point", "normal", "restitution", "static_friction", "kinetic_friction"});
+      require({"point", "normal"});
+      o = Obstacle::plane(r.vector(e, fk, "point", {}), r.direction(e, fk, "normal", {}));
+    } else if (type == "sphere") {
+      r.object(e, fk, {"type", "center", "radius", "restitution", "static_friction", "kinetic_friction"});
+      require({"center", "radius"});
+      o = Obstacle::sphere(r.vector(e, fk, "center", {}), r.number(e, fk, "radius", 0, 0, false, " m"));
+    } else if (type == "capsule") {
+      r.object(e, fk, {"type", "a", "b", "radius", "restitution", "static_friction", "kinetic_friction"});
+      require({"a", "b", "radius"});
+      o = Obstacle::capsule(r.vector(e, fk, "a", {}), r.vector(e, fk, "b", {}),
+                            r.number(e, fk, "radius", 0, 0, false, " m"));
+    } else {
+      r.object(e, fk, {"type", "center", "half_extents", "radius", "restitution", "static_friction", "kinetic_friction"});
+      require({"center", "half_extents"});
+      o = Obstacle::box(r.vector(e, fk, "center", {}), r.vector(e, fk, "half_extents", {}));
+      const Vec3d& h = o.halfExtents;
+      if (!(h.x > 0 && h.y > 0 && h.z > 0))
+        r.fail(Reader::join(fk, "half_extents"), "must be > 0 m in every axis, got " + fmt(h));
+      o.radius = r.number(e, fk, "radius", 0, 0, true, " m");
+      const double smallest = std::min({h.x, h.y, h.z});
+      if (o.radius > smallest)
+        r.fail(Reader::join(fk, "radius"), "(the rounding of the edges) must be <= the smallest half extent (" +
+                                               fmt(smallest) + " m), got " + fmt(o.radius));
+    }
+    readSurface(r, e, fk, o);
+    c.obstacles.push_back(o);
+  }
 }
 
 /// Scene-wide values the step converts to S must be within S's range (1e39 is a double
@@ -711,7 +809,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   const Reader r(source);
   r.object(root, "",
            {"name", "bodies", "integrator", "dt", "steps", "duration", "precision", "threads", "force_strategy",
-            "gravity", "effects", "integration", "stability", "output"});
+            "gravity", "effects", "collision", "integration", "stability", "output"});
   SceneSpec scene;
   scene.name = r.string(root, "", "name", "scene");
   if (!root.contains("bodies")) r.fail("bodies", "is required: a non-empty array of bodies");
@@ -757,6 +855,8 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     r.fail("force_strategy", "grid-stencil needs a scene of a single cloth_grid body, got " + bodiesText(scene));
   o.gravity = r.vector(root, "", "gravity", o.gravity);
   if (root.contains("effects")) o.effects = readEffects(r, root["effects"], "effects");
+  if (root.contains("collision"))
+    readCollision(r, root["collision"], "collision", baseDirectory, o.collision, scene.meshObstacles);
   if (root.contains("integration")) {
     const Json& j = root["integration"];
     const std::string f = "integration";
@@ -817,7 +917,7 @@ SceneSpec readSceneFile(const std::string& path) {
 // ---------------------------------------------------------------------------------------
 
 std::vector<std::string> builtinSceneNames() {
-  return {"flag", "rope", "flag-wind", "hanging-cloth", "drape", "rope-on-pegs", "fast-ball"};
+  return {"flag", "rope", "flag-wind", "hanging-cloth", "drape", "drape-mesh", "rope-on-pegs", "fast-ball"};
 }
 
 SceneSpec builtinSceneSpec(const std::string& name, Index size) {
@@ -895,6 +995,27 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     scene.simulation.effects.drag = 1e-3;
     scene.simulation.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.3));
     scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
+  } else if (name == "drape-mesh") {
+    // The drape scene's cloth (size x size, default 32) falling from 0.5 m onto a torus
+    // lying flat around the origin (major radius 0.3 m, tube 0.1 m: 1536 triangles), imported
+    // from the OBJ file embedded in the library (tools/scenes/meshes/torus.obj, in cm), and a
+    // floor at y = -0.4; 2 s.
+    const Index n = size > 0 ? size : 32;
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::ClothGrid;
+    body.name = "cloth";
+    body.grid = flagSpec(n);
+    body.grid.origin = {-0.5, 0.5, -0.5};
+    scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    scene.steps = static_cast<std::int64_t>(std::ceil(2.0 / scene.simulation.dt));
+    scene.simulation.effects.drag = 1e-3;
+    scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
+    MeshObstacleSpec torus;
+    torus.obstacle.name = "torus";
+    torus.meshFile = "torus.obj";
+    torus.meshContents = std::string(builtinTorusObj());
+    torus.scale = 0.01;
+    scene.meshObstacles.push_back(std::move(torus));
   } else if (name == "rope-on-pegs") {
     // A free 1 m rope (size particles, default 64) falling from 0.3 m across three pegs
     // (capsules along z, radius 3 cm, at x = 0.2, 0.5, 0.8, y = 0), a floor at y = -0.6; 2 s.
@@ -1023,6 +1144,11 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
     if (v.x == 0 && v.y == 0 && v.z == 0) continue;
     if (!(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)))
       throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be finite, got " + fmt(v));
+    const double big = static_cast<double>(std::numeric_limits<S>::max());
+    if (!(std::abs(v.x) <= big && std::abs(v.y) <= big && std::abs(v.z) <= big))
+      throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be within the range of " +
+                       (sizeof(S) == sizeof(float) ? "float" : "double") + " precision (|value| <= " + fmt(big) +
+                       "), got " + fmt(v));
     const Index end = k + 1 < scene.bodies.size() ? out.firstParticle[k + 1] : out.built.model.particleCount();
     for (Index i = out.firstParticle[k]; i < end; ++i)
       if (!out.built.model.isPinned(i)) {
@@ -1034,6 +1160,35 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
   std::vector<KinematicPins> pins = std::move(out.options.kinematicPins);
   out.options = scene.simulation;  // its own kinematicPins (C++ scenes, global indices) first
   for (KinematicPins& p : pins) out.options.kinematicPins.push_back(std::move(p));
+  for (size_t k = 0; k < scene.meshObstacles.size(); ++k) {
+    const MeshObstacleSpec& m = scene.meshObstacles[k];
+    const std::string field = scene.name + ": mesh obstacle " + std::to_string(k) +
+                              (m.obstacle.name.empty() ? std::string() : " (" + m.obstacle.name + ")");
+    MeshObstacle obstacle = m.obstacle;
+    MeshReport report;
+    try {
+      if (!(std::isfinite(m.scale) && m.scale > 0))
+        throw std::invalid_argument("scale must be finite and > 0, got " + fmt(m.scale));
+      if (!finite(m.translate)) throw std::invalid_argument("translate must be finite, got " + fmt(m.translate));
+      obstacle.mesh = m.meshContents.empty() ? loadCleanMesh(m.meshFile, m.clean, &report)
+                                             : loadCleanMeshFromMemory(m.meshContents, m.meshFile, m.clean, &report);
+      for (Vec3d& p : obstacle.mesh.vertices) {
+        p = {m.scale * p.x + m.translate.x, m.scale * p.y + m.translate.y, m.scale * p.z + m.translate.z};
+        if (!finite(p))
+          throw std::invalid_argument("a vertex scaled and translated is not finite: " + fmt(p) +
+                                      " (scale or translate too large)");
+      }
+    } catch (const std::exception& e) {
+      throw SceneError(field + ": " + e.what());
+    }
+    out.meshReports.push_back(m.meshFile + " (obstacle): " + report.summary());
+    out.options.collision.meshes.push_back(std::move(obstacle));
+  }
+  try {
+    validateCollision(out.options.collision, "collision");
+  } catch (const std::exception& e) {
+    throw SceneError(scene.name + ": " + e.what());
+  }
   return out;
 }
 

@@ -99,6 +99,7 @@ struct CollisionOptions {
   std::vector<MeshObstacle> meshes;  // triangle mesh obstacles; with no obstacle of either kind collision costs nothing
   double thickness = 0.005;          // particle radius / cloth thickness, m (> 0)
   bool continuous = true;            // continuous detection (no tunnelling)
+  bool edges = true;                 // with continuous: cloth and rope edges against mesh edges too
   double epsilon = 1e-5;             // time-of-impact tolerance, m (> 0, < thickness)
   double restingSpeed = 0.05;        // m/s: slower normal approach does not bounce
   double maxPenetration = 0;         // rollback above this depth (m); 0 = half the thickness

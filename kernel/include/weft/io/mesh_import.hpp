@@ -40,4 +40,13 @@ TriangleMesh loadMesh(const std::string& path);
 /// loadMesh, then cleanMesh with `options` (filling *report if it is not null).
 TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options = {}, MeshReport* report = nullptr);
 
+/// loadMesh for a file's contents held in memory (a mesh embedded in a program, one
+/// received over a network): `name` stands for the path in messages, and its extension
+/// tells assimp the format ("torus.obj"). Same errors as loadMesh (an empty `contents`
+/// is "the file is empty").
+TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name);
+/// loadMeshFromMemory, then cleanMesh.
+TriangleMesh loadCleanMeshFromMemory(const std::string& contents, const std::string& name,
+                                     const MeshCleanOptions& options = {}, MeshReport* report = nullptr);
+
 }  // namespace weft

@@ -62,7 +62,20 @@ struct BodySpec {
   ClothMeshSpec mesh;      // kind == ClothMesh
   MeshCleanOptions clean;  // kind == ClothMesh
   std::vector<PinSpec> pins;
-  Vec3d velocity{0, 0, 0};  // initial velocity of the body's free particles, m/s (C++ scenes: fast-ball)
+  Vec3d velocity{0, 0, 0};  // initial velocity of the body's free particles, m/s
+};
+
+/// A triangle mesh obstacle read from a mesh file when the scene is assembled: the file is
+/// loaded with loadCleanMesh (welded by `clean`), scaled by `scale` and moved by
+/// `translate` (like a cloth_mesh body), and becomes `obstacle.mesh`; the rest of
+/// `obstacle` (name, path, restitution, friction) is used as given.
+struct MeshObstacleSpec {
+  MeshObstacle obstacle;      // its mesh is filled at assembly
+  std::string meshFile;       // any format assimp reads (a scene file's paths are resolved against its directory)
+  std::string meshContents;   // not empty: the file's contents, in memory (built-in scenes); meshFile names it
+  MeshCleanOptions clean;     // weld tolerance
+  double scale = 1;           // > 0
+  Vec3d translate{0, 0, 0};   // m
 };
 
 struct OutputSpec {
@@ -74,7 +87,8 @@ struct OutputSpec {
 struct SceneSpec {
   std::string name = "scene";
   std::vector<BodySpec> bodies;
-  SimulationOptions simulation;  // integrator, dt, threads, strategy, gravity, effects, ...
+  SimulationOptions simulation;  // integrator, dt, threads, strategy, gravity, effects, collision, ...
+  std::vector<MeshObstacleSpec> meshObstacles;  // appended to simulation.collision.meshes at assembly
   Precision precision = Precision::Double;
   std::int64_t steps = 0;  // > 0: run this many steps
   double duration = 0;     // otherwise: ceil(duration / dt) steps (one of the two is required)
@@ -92,8 +106,10 @@ SceneSpec parseScene(const std::string& text, const std::string& source = "scene
                      const std::string& baseDirectory = ".");
 
 /// The built-in scenes: flag, rope, flag-wind, hanging-cloth, and with obstacles drape (a
-/// cloth falling onto a sphere), rope-on-pegs (a rope falling across three capsules) and
-/// fast-ball (a small cloth fired at 100 m/s at a wall one triangle thin, dt = 1/60 s).
+/// cloth falling onto a sphere), drape-mesh (onto a torus imported from an OBJ file
+/// embedded in the library: tools/scenes/meshes/torus.obj), rope-on-pegs (a rope falling
+/// across three capsules) and fast-ball (a small cloth fired at 100 m/s at a wall one
+/// triangle thin, dt = 1/60 s).
 /// size 0 = the default.
 /// Throws SceneError for an unknown name, listing the known ones.
 SceneSpec builtinSceneSpec(const std::string& name, Index size = 0);
@@ -104,11 +120,12 @@ struct AssembledScene {
   ModelAndState<S> built;
   SimulationOptions options;             // with kinematicPins resolved
   std::vector<Index> firstParticle;      // per body
-  std::vector<std::string> meshReports;  // one line per mesh body: what cleaning found
+  std::vector<std::string> meshReports;  // one line per mesh body and mesh obstacle: what cleaning found
 };
 
-/// Builds the model, the state and the options. Throws SceneError (bad values, unreadable
-/// meshes, pins selecting nothing).
+/// Builds the model, the state and the options (mesh obstacles loaded into
+/// options.collision.meshes). Throws SceneError (bad values, unreadable meshes, pins
+/// selecting nothing, collision options the simulation would refuse).
 template <class S>
 AssembledScene<S> assembleScene(const SceneSpec& scene);
 
