@@ -266,7 +266,8 @@ TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
 
 TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
   // A cloth falling fast onto a floor (rollbacks), a sphere, a capsule, a box and a moving
-  // icosphere mesh, continuous detection on, collision profiling on, 1 and 2 threads.
+  // icosphere mesh, continuous detection on, cloth edges against every mesh edge, collision
+  // profiling on, 1 and 2 threads.
   ClothGridSpec spec = flagSpec(kFlagSize);
   spec.origin = {-0.5, 0.02, -0.5};
   ModelBuilder<double> b;
@@ -292,6 +293,7 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
       mesh.path->velocity = {0.5, 0, 0};
       mesh.path->angularVelocity = 1;
       c.meshes.push_back(mesh);
+      c.featureAngle = 0;  // every mesh edge is a feature: the edge pass runs
       Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
       ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
       StepStatus status;
@@ -303,6 +305,7 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
       EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
       EXPECT_GT(sim.totalCollision().contacts, 0);
       EXPECT_GT(sim.totalCollision().rollbacks, 0);
+      EXPECT_GT(sim.totalCollision().edgeContacts, 0);
       EXPECT_GT(sim.effectTimes().collision, 0);
     }
 }

@@ -219,6 +219,7 @@ void expectSameCollision(const CollisionOptions& a, const CollisionOptions& b) {
   EXPECT_EQ(a.thickness, b.thickness);
   EXPECT_EQ(a.continuous, b.continuous);
   EXPECT_EQ(a.edges, b.edges);
+  EXPECT_EQ(a.featureAngle, b.featureAngle);
   EXPECT_EQ(a.epsilon, b.epsilon);
   EXPECT_EQ(a.restingSpeed, b.restingSpeed);
   EXPECT_EQ(a.maxPenetration, b.maxPenetration);
@@ -461,7 +462,8 @@ TEST(SceneReader, CollisionFieldsLandInTheirMembers) {
   const std::string json = R"({
     "bodies": [{"type": "rope", "velocity": [1, 2, 3]}], "dt": 0.001, "steps": 1,
     "collision": {
-      "thickness": 0.01, "continuous": false, "edges": false, "epsilon": 1e-4, "resting_speed": 0.2,
+      "thickness": 0.01, "continuous": false, "edges": false, "feature_angle": 45, "epsilon": 1e-4,
+      "resting_speed": 0.2,
       "max_penetration": 0.003, "max_halvings": 4,
       "obstacles": [
         {"type": "plane", "point": [0, -1, 0], "normal": [0, 2, 0], "restitution": 0.5, "static_friction": 0.7,
@@ -481,6 +483,7 @@ TEST(SceneReader, CollisionFieldsLandInTheirMembers) {
   EXPECT_EQ(c.thickness, 0.01);
   EXPECT_FALSE(c.continuous);
   EXPECT_FALSE(c.edges);
+  EXPECT_EQ(c.featureAngle, 45);
   EXPECT_EQ(c.epsilon, 1e-4);
   EXPECT_EQ(c.restingSpeed, 0.2);
   EXPECT_EQ(c.maxPenetration, 0.003);
@@ -777,6 +780,8 @@ const std::vector<BadScene>& badScenes() {
        "collision.max_halvings", "must be an integer, got number 2.5"},
       {"collision_continuous_string", top(R"(, "collision": {"continuous": "yes", "obstacles": []})"),
        "collision.continuous", R"(string "yes")"},
+      {"collision_feature_angle_above_180", top(R"(, "collision": {"feature_angle": 200, "obstacles": []})"),
+       "collision.feature_angle", "must be <= 180 degrees, got 200"},
       {"collision_negative_resting_speed", top(R"(, "collision": {"resting_speed": -1, "obstacles": []})"),
        "collision.resting_speed", "got -1"},
       {"obstacle_number", top(R"(, "collision": {"obstacles": [3]})"), "collision.obstacles[0]", "number 3"},

@@ -288,6 +288,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["contacts"] = contacts->countContacts(state.x, w, t);
       j["max_penetration"] = contacts->penetration(state.x, w, t);
       j["rollbacks"] = sim.totalCollision().rollbacks;
+      j["edge_contacts"] = sim.totalCollision().edgeContacts;
       j["tunnelled"] = contacts->countTunnelled(initial->x, state.x, w, 0.0, t);
     }
     if (!assembled.meshReports.empty()) j["meshes"] = assembled.meshReports;

@@ -5,6 +5,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "weft/collide/shapes.hpp"
 
@@ -296,6 +297,137 @@ double windingNumber(const MeshCollider& c, V p) {
   return total / (4 * 3.14159265358979323846);
 }
 
+// Closest points of the segments p1 q1 and p2 q2 (Ericson, Real-Time Collision Detection,
+// 5.1.9): parameters s, t in [0, 1] and the points c1, c2; returns the squared distance.
+double closestSegmentSegment(V p1, V q1, V p2, V q2, double& s, double& t, V& c1, V& c2) {
+  const V d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
+  const double a = dot(d1, d1), e = dot(d2, d2), f = dot(d2, r);
+  if (a == 0 && e == 0) {
+    s = t = 0;
+  } else if (a == 0) {
+    s = 0;
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = dot(d1, r);
+    if (e == 0) {
+      t = 0;
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = dot(d1, d2), denom = a * e - b * b;
+      s = denom > 0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;  // parallel: any s, take 0
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1) {
+        t = 1;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  c1 = p1 + s * d1;
+  c2 = p2 + t * d2;
+  return dot(c1 - c2, c1 - c2);
+}
+
+// The mesh edge closest to the segment A B, among the triangles whose boxes overlap `box`.
+struct EdgeProbe {
+  double distance = std::numeric_limits<double>::infinity();
+  double alpha = 0;      // along A B
+  V onEdge{0, 0, 0};     // on A B
+  V onMesh{0, 0, 0};     // on the mesh edge
+};
+EdgeProbe closestMeshEdge(const MeshCollider& c, V a, V b, const Aabb<double>& box) {
+  EdgeProbe best;
+  double best2 = std::numeric_limits<double>::infinity();
+  if (c.featureEdges.empty()) return best;
+  c.bvh.forEachOverlapping(box, [&](Index t) {
+    const std::uint8_t mask = c.featureEdges[static_cast<size_t>(t)];
+    if (mask == 0) return;
+    const Index corner[3] = {c.triangles.a[t], c.triangles.b[t], c.triangles.c[t]};
+    for (int k = 0; k < 3; ++k) {
+      if (!(mask & (1u << k))) continue;
+      const Index u = corner[k], w = corner[(k + 1) % 3];
+      const V pu{c.x(u, 0), c.x(u, 1), c.x(u, 2)}, pw{c.x(w, 0), c.x(w, 1), c.x(w, 2)};
+      double s, tt;
+      V c1, c2;
+      const double d2 = closestSegmentSegment(a, b, pu, pw, s, tt, c1, c2);
+      if (d2 < best2) {
+        best2 = d2;
+        best.alpha = s;
+        best.onEdge = c1;
+        best.onMesh = c2;
+      }
+    }
+  });
+  best.distance = std::sqrt(best2);
+  return best;
+}
+
+// The box around points p[0..3], grown by r.
+Aabb<double> boxAround(std::initializer_list<V> points, double r) {
+  Aabb<double> box{{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                    std::numeric_limits<double>::infinity()},
+                   {-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                    -std::numeric_limits<double>::infinity()}};
+  for (const V& p : points) {
+    const double c[3] = {p.x, p.y, p.z};
+    for (int k = 0; k < 3; ++k) {
+      box.lo[k] = std::min(box.lo[k], c[k] - r);
+      box.hi[k] = std::max(box.hi[k], c[k] + r);
+    }
+  }
+  return box;
+}
+
+// The feature edges of a mesh (see MeshCollider::featureEdges): edges with one face, with
+// more than two, or whose two faces' unit normals make an angle of at least `degrees`
+// (a face without a normal, of zero area, makes every edge of it a feature).
+std::vector<std::uint8_t> featureEdges(const MeshCollider& c, double degrees) {
+  const Index nt = c.triangles.count();
+  struct Side {
+    Index lo, hi, triangle;
+    int k;
+  };
+  std::vector<Side> sides;
+  sides.reserve(static_cast<size_t>(3 * nt));
+  std::vector<V> normals(static_cast<size_t>(nt));
+  for (Index t = 0; t < nt; ++t) {
+    const Index corner[3] = {c.triangles.a[t], c.triangles.b[t], c.triangles.c[t]};
+    const auto p = [&](Index i) { return V{c.x(i, 0), c.x(i, 1), c.x(i, 2)}; };
+    const V e1 = p(corner[1]) - p(corner[0]), e2 = p(corner[2]) - p(corner[0]);
+    const V n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+    const double len = norm(n);
+    normals[static_cast<size_t>(t)] = len > 0 ? (1 / len) * n : V{0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
+      const Index u = corner[k], w = corner[(k + 1) % 3];
+      sides.push_back({std::min(u, w), std::max(u, w), t, k});
+    }
+  }
+  std::sort(sides.begin(), sides.end(), [](const Side& a, const Side& b) {
+    return std::tie(a.lo, a.hi, a.triangle, a.k) < std::tie(b.lo, b.hi, b.triangle, b.k);
+  });
+  const double cosLimit = std::cos(degrees * 3.14159265358979323846 / 180);
+  std::vector<std::uint8_t> mask(static_cast<size_t>(nt), 0);
+  bool any = false;
+  for (size_t g = 0; g < sides.size();) {
+    size_t e = g + 1;
+    while (e < sides.size() && sides[e].lo == sides[g].lo && sides[e].hi == sides[g].hi) ++e;
+    bool feature = e - g != 2 || degrees == 0;
+    if (!feature) {
+      const V n1 = normals[static_cast<size_t>(sides[g].triangle)], n2 = normals[static_cast<size_t>(sides[g + 1].triangle)];
+      feature = dot(n1, n1) == 0 || dot(n2, n2) == 0 || dot(n1, n2) <= cosLimit;
+    }
+    if (feature) {
+      mask[static_cast<size_t>(sides[g].triangle)] |= static_cast<std::uint8_t>(1u << sides[g].k);
+      any = true;
+    }
+    g = e;
+  }
+  if (!any) mask.clear();
+  return mask;
+}
+
 }  // namespace
 
 const char* obstacleKindName(ObstacleKind kind) {
@@ -353,6 +485,7 @@ double obstacleDistance(const Obstacle& o, const Vec3d& x, Vec3d* normal) {
 CollisionStats& CollisionStats::operator+=(const CollisionStats& o) {
   contacts += o.contacts;
   continuousHits += o.continuousHits;
+  edgeContacts += o.edgeContacts;
   rollbacks += o.rollbacks;
   acceptedDeep += o.acceptedDeep;
   maxPenetration = std::max(maxPenetration, o.maxPenetration);
@@ -379,6 +512,7 @@ void validateCollision(const CollisionOptions& c, const char* where) {
   if (!(std::isfinite(c.maxPenetration) && c.maxPenetration >= 0))
     fail("maxPenetration", c.maxPenetration, "finite and >= 0 (m)");
   if (!(c.maxHalvings >= 0 && c.maxHalvings <= 30)) fail("maxHalvings", c.maxHalvings, "in [0, 30]");
+  if (!(c.featureAngle >= 0 && c.featureAngle <= 180)) fail("featureAngle", c.featureAngle, "in [0, 180] (degrees)");
   for (size_t k = 0; k < c.obstacles.size(); ++k) {
     const Obstacle& o = c.obstacles[k];
     const std::string f = "obstacles[" + std::to_string(k) + "].";
@@ -433,8 +567,18 @@ void validateCollision(const CollisionOptions& c, const char* where) {
 }
 
 template <class S>
-ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount) : options_(options) {
+ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges)
+    : options_(options) {
   validateCollision(options_);
+  for (size_t k = 0; k < edges.size(); ++k)
+    for (const Index i : edges[k])
+      if (i < 0 || i >= particleCount)
+        throw std::invalid_argument("ContactSolver: edges[" + std::to_string(k) + "] has particle " +
+                                    std::to_string(i) + ", not in [0, " + std::to_string(particleCount) + ")");
+  if (options_.continuous && options_.edges && !options_.meshes.empty()) {
+    edges_ = std::move(edges);
+    edgeHits_.resize(edges_.size());
+  }
   if (options_.maxPenetration == 0) options_.maxPenetration = 0.5 * options_.thickness;
   const Index blocks = Executor::blockCount(particleCount, kGrain);
   blockDepth_.assign(static_cast<size_t>(blocks), 0.0);
@@ -451,6 +595,12 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
     MeshReport report;
     cleanMesh(options_.meshes[k].mesh, MeshCleanOptions{0}, &report);
     c.closed = report.boundaryEdges == 0 && report.nonManifoldEdges == 0;
+    if (!edges_.empty()) c.featureEdges = featureEdges(c, options_.featureAngle);
+  }
+  // The edge pass needs a mesh with feature edges.
+  if (std::none_of(meshes_.begin(), meshes_.end(), [](const MeshCollider& c) { return !c.featureEdges.empty(); })) {
+    edges_.clear();
+    edgeHits_.clear();
   }
 }
 
@@ -473,6 +623,40 @@ double pointPenetration(const CollisionOptions& opt, const std::vector<MeshColli
   for (size_t m = 0; m < meshes.size(); ++m)
     deepest = std::max(deepest, h - meshDistance(meshes[m], toBody(opt.meshes[m], p, t), h + opt.epsilon));
   return deepest;
+}
+
+// The first contact of the edge a0 -> a1, b0 -> b1 (its ends over the chunk, in the mesh's
+// frame) with an edge of the mesh thickened by h: conservative advancement on the distance
+// between the segment and the mesh's edges (no point of the segment moves farther than the
+// larger end displacement L over the chunk, so advancing by gap / L never passes a contact),
+// an impact counting only while the contact point approaches; else a discrete contact at
+// the end. Returns the chunk fraction (> 1: none) and fills the probe.
+double edgeImpact(const MeshCollider& c, V a0, V a1, V b0, V b1, double h, double eps, EdgeProbe& hit) {
+  const V da = a1 - a0, db = b1 - b0;
+  const double length = std::max(norm(da), norm(db));
+  double s = 0;
+  for (int k = 0; k < 64; ++k) {
+    const V a = a0 + s * da, b = b0 + s * db;
+    const EdgeProbe p = closestMeshEdge(c, a, b, boxAround({a, b, a1, b1}, h + eps));
+    const double gap = p.distance - h;
+    if (gap <= eps) {
+      const V motion = (1 - p.alpha) * da + p.alpha * db;
+      if (p.distance > 0 && dot(motion, p.onEdge - p.onMesh) < 0) {
+        hit = p;
+        return s;
+      }
+      break;  // moving away from or along the edge it touches (a resting contact): no impact
+    }
+    if (length == 0 || !std::isfinite(gap)) break;
+    s += gap / length;
+    if (s >= 1) break;
+  }
+  const EdgeProbe end = closestMeshEdge(c, a1, b1, boxAround({a1, b1}, h));
+  if (end.distance < h && end.distance > 0) {
+    hit = end;
+    return 1;
+  }
+  return 2;
 }
 
 }  // namespace
@@ -548,7 +732,103 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
     stats.continuousHits += blockCcd_[k];
     stats.maxPenetration = std::max(stats.maxPenetration, blockDepth_[k]);
   }
+  if (!edges_.empty()) stats.edgeContacts = resolveEdges(x0, x1, v1, w, t0, t1, exec);
   return stats;
+}
+
+template <class S>
+std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
+                                            const ScalarArray<S>& w, double t0, double t1, const Executor& exec) {
+  // Detection, per edge and in parallel, on the particles' resolved motion x0 -> x1: the
+  // earliest contact over the mesh obstacles.
+  const double h = options_.thickness, eps = options_.epsilon;
+  const auto edgeCount = static_cast<Index>(edges_.size());
+  exec.parallelForBlocks(edgeCount, kGrain, [&](Index, Index b, Index e) {
+    for (Index k = b; k < e; ++k) {
+      EdgeHit& record = edgeHits_[static_cast<size_t>(k)];
+      record.mesh = -1;
+      const auto [i, j] = edges_[static_cast<size_t>(k)];
+      if (w[i] == S(0) && w[j] == S(0)) continue;
+      const V pi0 = row(x0, i), pi1 = row(x1, i), pj0 = row(x0, j), pj1 = row(x1, j);
+      double first = 2;
+      for (size_t m = 0; m < meshes_.size(); ++m) {
+        const MeshObstacle& mo = options_.meshes[m];
+        EdgeProbe probe;
+        const double s = edgeImpact(meshes_[m], toBody(mo, pi0, t0), toBody(mo, pi1, t1), toBody(mo, pj0, t0),
+                                    toBody(mo, pj1, t1), h, eps, probe);
+        if (!(s < first)) continue;
+        first = s;
+        const V n = (1 / probe.distance) * (probe.onEdge - probe.onMesh);
+        record.mesh = static_cast<int>(m);
+        record.alpha = probe.alpha;
+        record.point[0] = probe.onMesh.x;
+        record.point[1] = probe.onMesh.y;
+        record.point[2] = probe.onMesh.z;
+        record.normal[0] = n.x;
+        record.normal[1] = n.y;
+        record.normal[2] = n.z;
+      }
+    }
+  });
+  // Response, serially in edge order (edges share particles): the contact point of the
+  // edge, at alpha between its ends, goes back to the thickness along the normal, and its
+  // velocity relative to the mesh gets the contact's restitution and friction; both
+  // changes are shared by the two ends in proportion to their inverse masses (the
+  // point's change is exactly the one asked for).
+  std::int64_t hits = 0;
+  for (Index k = 0; k < edgeCount; ++k) {
+    const EdgeHit& r = edgeHits_[static_cast<size_t>(k)];
+    if (r.mesh < 0) continue;
+    const auto [i, j] = edges_[static_cast<size_t>(k)];
+    const MeshObstacle& mo = options_.meshes[static_cast<size_t>(r.mesh)];
+    const double wi = static_cast<double>(w[i]), wj = static_cast<double>(w[j]), al = r.alpha;
+    const double weight = (1 - al) * (1 - al) * wi + al * al * wj;
+    if (!(weight > 0)) continue;  // the contact point sits on a pinned end
+    ++hits;
+    const V n{r.normal[0], r.normal[1], r.normal[2]}, q{r.point[0], r.point[1], r.point[2]};
+    V a = toBody(mo, row(x1, i), t1), b = toBody(mo, row(x1, j), t1);
+    const double separation = dot((1 - al) * a + al * b - q, n);
+    if (separation < h) {
+      const double lambda = (h - separation) / weight;
+      a = a + (lambda * (1 - al) * wi) * n;
+      b = b + (lambda * al * wj) * n;
+    }
+    const V qEnd = toWorld(mo, q, t1);
+    const V surfaceVelocity = mo.path && t1 > t0 ? (1 / (t1 - t0)) * (qEnd - toWorld(mo, q, t0)) : V{0, 0, 0};
+    const V nw = mo.path ? v(kinematicRotate(*mo.path, d3(n), t1)) : n;
+    const V vi = row(v1, i), vj = row(v1, j);
+    const V relative = (1 - al) * vi + al * vj - surfaceVelocity;
+    V after = relative;
+    const double factor = respondVelocity(surface(mo), options_.restingSpeed, nw, after);
+    const V change = after - relative;
+    const V vi1 = vi + ((1 - al) * wi / weight) * change, vj1 = vj + (al * wj / weight) * change;
+    if (factor < 1) {
+      // Friction on the contact point's tangential motion over the chunk, as for a particle.
+      const V start = (1 - al) * toBody(mo, row(x0, i), t0) + al * toBody(mo, row(x0, j), t0);
+      const V moved = (1 - al) * a + al * b - start;
+      const V slide = (-(1 - factor)) * (moved - dot(moved, n) * n);
+      a = a + ((1 - al) * wi / weight) * slide;
+      b = b + (al * wj / weight) * slide;
+    }
+    const V ai = toWorld(mo, a, t1), bj = toWorld(mo, b, t1);
+    if (wi > 0) {
+      x1(i, 0) = static_cast<S>(ai.x);
+      x1(i, 1) = static_cast<S>(ai.y);
+      x1(i, 2) = static_cast<S>(ai.z);
+      v1(i, 0) = static_cast<S>(vi1.x);
+      v1(i, 1) = static_cast<S>(vi1.y);
+      v1(i, 2) = static_cast<S>(vi1.z);
+    }
+    if (wj > 0) {
+      x1(j, 0) = static_cast<S>(bj.x);
+      x1(j, 1) = static_cast<S>(bj.y);
+      x1(j, 2) = static_cast<S>(bj.z);
+      v1(j, 0) = static_cast<S>(vj1.x);
+      v1(j, 1) = static_cast<S>(vj1.y);
+      v1(j, 2) = static_cast<S>(vj1.z);
+    }
+  }
+  return hits;
 }
 
 template <class S>

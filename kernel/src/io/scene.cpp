@@ -674,11 +674,14 @@ void readSurface(const Reader& r, const Json& j, const std::string& f, T& o) {
 void readCollision(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory,
                    CollisionOptions& c, std::vector<MeshObstacleSpec>& meshes) {
   r.object(j, f,
-           {"obstacles", "thickness", "continuous", "edges", "epsilon", "resting_speed", "max_penetration",
-            "max_halvings"});
+           {"obstacles", "thickness", "continuous", "edges", "feature_angle", "epsilon", "resting_speed",
+            "max_penetration", "max_halvings"});
   c.thickness = r.number(j, f, "thickness", c.thickness, 0, false, " m");
   c.continuous = r.boolean(j, f, "continuous", c.continuous);
   c.edges = r.boolean(j, f, "edges", c.edges);
+  c.featureAngle = r.number(j, f, "feature_angle", c.featureAngle, 0, true, " degrees");
+  if (c.featureAngle > 180)
+    r.fail(Reader::join(f, "feature_angle"), "must be <= 180 degrees, got " + shortDump(j["feature_angle"]));
   c.epsilon = r.number(j, f, "epsilon", std::min(c.epsilon, 0.5 * c.thickness), 0, false, " m");
   if (!(c.epsilon < c.thickness))
     r.fail(Reader::join(f, "epsilon"),

@@ -83,8 +83,18 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   trackEnd_.resize(tracks_.size());
   trackVelocity_.setZero(static_cast<Index>(tracks_.size()), 3);
   forces_.setProfiling(options_.profileEffects);
-  if (options_.collision.any())
-    contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount());
+  if (options_.collision.any()) {
+    // The edges the contact pass tests against mesh edges: the cloth's surface edges and a
+    // rope's links (structural and shear springs), when there is a mesh to test them on.
+    std::vector<Edge> edges;
+    const CollisionOptions& c = options_.collision;
+    if (c.continuous && c.edges && !c.meshes.empty()) {
+      const Springs<S>& springs = model_->springs();
+      for (Index s = 0; s < springs.count(); ++s)
+        if (springs.kind[static_cast<size_t>(s)] != SpringClass::Bend) edges.push_back({springs.a[s], springs.b[s]});
+    }
+    contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges));
+  }
 }
 
 template <class S>

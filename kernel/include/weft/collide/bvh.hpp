@@ -192,6 +192,11 @@ class TriangleBvh {
   Index depth() const { return depth_; }
   Index subtreeCount() const { return static_cast<Index>(subtrees_.size()); }
 
+  /// Calls f(triangle) for every triangle whose leaf box (with the margin) overlaps `box`,
+  /// each once, in an order fixed by the tree. Allocates nothing; f may stop nothing.
+  template <class F>
+  void forEachOverlapping(const Aabb<S>& box, F&& f) const;
+
   /// The triangle closest to `point` with squared distance <= radius^2 (radius >= 0, may
   /// be infinite), or none.
   std::optional<ClosestTriangle<S>> closestTriangle(const Vec3Array<S>& x, const Vec3<S>& point, S radius) const;
@@ -248,5 +253,30 @@ class TriangleBvh {
 
 extern template class TriangleBvh<float>;
 extern template class TriangleBvh<double>;
+
+template <class S>
+template <class F>
+void TriangleBvh<S>::forEachOverlapping(const Aabb<S>& box, F&& f) const {
+  if (empty() || !rootBox_.overlaps(box)) return;
+  if (triangleCount() == 1) {
+    f(slotTriangle_[0]);
+    return;
+  }
+  // A tree has depth <= 61 (build step 4): a depth-first walk holds at most depth + 2 nodes.
+  Index stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode<S>& node = nodes_[static_cast<size_t>(stack[--top])];
+    for (int k = 0; k < 2; ++k) {
+      if (!node.box[k].overlaps(box)) continue;
+      const Index c = node.child[k];
+      if (c < 0)
+        f(slotTriangle_[static_cast<size_t>(~c)]);
+      else
+        stack[top++] = c;
+    }
+  }
+}
 
 }  // namespace weft

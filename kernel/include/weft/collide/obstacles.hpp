@@ -42,6 +42,7 @@
 // maxHalvings halvings, then accepts and counts it.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -99,7 +100,9 @@ struct CollisionOptions {
   std::vector<MeshObstacle> meshes;  // triangle mesh obstacles; with no obstacle of either kind collision costs nothing
   double thickness = 0.005;          // particle radius / cloth thickness, m (> 0)
   bool continuous = true;            // continuous detection (no tunnelling)
-  bool edges = true;                 // with continuous: cloth and rope edges against mesh edges too
+  bool edges = true;                 // with continuous: cloth and rope edges against the meshes' feature edges too
+  double featureAngle = 30;          // degrees in [0, 180]: a mesh edge whose faces' normals differ by at least
+                                     // this much (or with one face, or more than two) is a feature edge; 0: every edge
   double epsilon = 1e-5;             // time-of-impact tolerance, m (> 0, < thickness)
   double restingSpeed = 0.05;        // m/s: slower normal approach does not bounce
   double maxPenetration = 0;         // rollback above this depth (m); 0 = half the thickness
@@ -117,6 +120,7 @@ double obstacleDistance(const Obstacle& o, const Vec3d& x, Vec3d* normal = nullp
 struct CollisionStats {
   std::int64_t contacts = 0;        // particles whose candidate state touched an obstacle
   std::int64_t continuousHits = 0;  // of which found only by continuous detection
+  std::int64_t edgeContacts = 0;    // cloth / rope edges that hit a mesh edge (CollisionOptions::edges)
   std::int64_t rollbacks = 0;       // chunks rolled back and retried with half the time
   std::int64_t acceptedDeep = 0;    // chunks accepted at the halving limit above maxPenetration
   double maxPenetration = 0;        // deepest penetration seen before the response, m
@@ -129,6 +133,9 @@ struct MeshCollider {
   Vec3Array<double> x;  // (v x 3) vertices at time 0, m
   Triangles triangles;
   bool closed = false;  // no boundary edge: inside is defined (winding number)
+  /// Per triangle, bit k set: its edge k (corners k, k + 1) is a feature edge that this
+  /// triangle tests (each edge by one triangle). Empty when the mesh has none.
+  std::vector<std::uint8_t> featureEdges;
 };
 
 /// The response pass over one candidate state. Sized at construction (the BVHs of the mesh
@@ -136,10 +143,16 @@ struct MeshCollider {
 ///
 /// Times t0, t1 (s, on the simulation's clock counted from its initial state) are the
 /// start and end of the chunk: moving mesh obstacles are where their paths put them then.
+/// A cloth or rope edge: the particles at its ends.
+using Edge = std::array<Index, 2>;
+
 template <class S>
 class ContactSolver {
  public:
-  ContactSolver(const CollisionOptions& options, Index particleCount);
+  /// `edges` (particle pairs: the cloth's triangle edges, a rope's links) are tested
+  /// against the edges of mesh obstacles when CollisionOptions::continuous and ::edges are
+  /// on; none: vertices only.
+  ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges = {});
 
   /// Deepest penetration (thickness - distance, >= 0) of the candidate positions x1 at
   /// time t1 over free particles (inverse mass w > 0): what rollback compares with
@@ -165,10 +178,22 @@ class ContactSolver {
   static constexpr Index kGrain = 1024;
 
  private:
+  std::int64_t resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
+                            double t0, double t1, const Executor& exec);
+
   CollisionOptions options_;
   std::vector<MeshCollider> meshes_;
   std::vector<double> blockDepth_;  // per block of kGrain particles
   std::vector<std::int64_t> blockHits_, blockCcd_;
+  /// What the edge pass found for one edge, in the frame of mesh `mesh` (-1: nothing).
+  struct EdgeHit {
+    int mesh = -1;
+    double alpha = 0;                 // the contact point's parameter along the edge, 0 .. 1
+    double point[3] = {0, 0, 0};      // the closest point on the mesh edge
+    double normal[3] = {0, 0, 0};     // unit, from the mesh edge towards the cloth edge
+  };
+  std::vector<Edge> edges_;
+  std::vector<EdgeHit> edgeHits_;  // (edges)
 };
 
 extern template class ContactSolver<float>;
