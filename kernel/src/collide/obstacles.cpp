@@ -250,7 +250,10 @@ V respondMesh(const CollisionOptions& opt, const MeshObstacle& m, const MeshColl
   const V hit = b0 + s * d;
   V q{0, 0, 0};
   Index tri = -1;
-  const double dist = meshDistance(c, hit, std::numeric_limits<double>::infinity(), &q, &tri);
+  // The hit point is within h + eps of the mesh (continuous), or b0, within h + |d| (x1 is
+  // within h): look no farther, unless rounding says otherwise.
+  double dist = meshDistance(c, hit, h + opt.epsilon + norm(d) + 1e-9, &q, &tri);
+  if (tri < 0) dist = meshDistance(c, hit, std::numeric_limits<double>::infinity(), &q, &tri);
   V n;
   if (dist > 1e-9 * h) {
     n = (1 / dist) * (hit - q);
@@ -585,6 +588,9 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
   blockHits_.assign(static_cast<size_t>(blocks), 0);
   blockCcd_.assign(static_cast<size_t>(blocks), 0);
   if (options_.meshes.empty()) return;
+  // No clearance known yet: -infinity, so that every particle is tested first.
+  clearance_.assign(options_.meshes.size() * static_cast<size_t>(particleCount) * 4,
+                    -std::numeric_limits<double>::infinity());
   const Executor serial(1);
   meshes_.resize(options_.meshes.size());
   for (size_t k = 0; k < options_.meshes.size(); ++k) {
@@ -661,14 +667,39 @@ double edgeImpact(const MeshCollider& c, V a0, V a1, V b0, V b1, double h, doubl
 
 }  // namespace
 
+namespace {
+
+// The clearance record of particle i against mesh m (see ContactSolver::clearance_).
+inline double* clearanceOf(std::vector<double>& clearance, size_t m, Index i, Index n) {
+  return clearance.data() + 4 * (m * static_cast<size_t>(n) + static_cast<size_t>(i));
+}
+// The lower bound on the distance to the mesh of every point within `reach` of p.
+inline double clearanceBound(const double* c, V p, double reach) {
+  return c[3] - norm(p - V{c[0], c[1], c[2]}) - reach;
+}
+
+}  // namespace
+
 template <class S>
 double ContactSolver<S>::deepestPenetration(const Vec3Array<S>& x1, const ScalarArray<S>& w, double t1,
                                             const Executor& exec) {
   const Index n = static_cast<Index>(x1.rows());
+  const double h = options_.thickness, eps = options_.epsilon;
   exec.parallelForBlocks(n, kGrain, [&](Index block, Index b, Index e) {
     double deepest = 0;
-    for (Index i = b; i < e; ++i)
-      if (w[i] != S(0)) deepest = std::max(deepest, pointPenetration(options_, meshes_, row(x1, i), t1));
+    for (Index i = b; i < e; ++i) {
+      if (w[i] == S(0)) continue;
+      const V p = row(x1, i);
+      for (const Obstacle& o : options_.obstacles) {
+        V nn;
+        deepest = std::max(deepest, h - distance(o, p, nn));
+      }
+      for (size_t m = 0; m < meshes_.size(); ++m) {
+        const V bp = toBody(options_.meshes[m], p, t1);
+        if (clearanceBound(clearanceOf(clearance_, m, i, n), bp, 0) > h + 2 * eps) continue;  // farther than h
+        deepest = std::max(deepest, h - meshDistance(meshes_[m], bp, h + eps));
+      }
+    }
     blockDepth_[block] = deepest;
   });
   double deepest = 0;
@@ -693,8 +724,22 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       for (size_t m = 0; m < meshes_.size(); ++m) {
         const MeshObstacle& mo = options_.meshes[m];
         const V b0 = toBody(mo, p0, t0), b1 = toBody(mo, p1, t1);
-        const double depth = h - meshDistance(meshes_[m], b1, h);
+        double* clear = clearanceOf(clearance_, m, i, n);
+        const double length = norm(b1 - b0);
+        // The whole chunk farther than the thickness from the mesh (every point of it is
+        // within `length` of b1): nothing to find, as the queries below would confirm.
+        if (clearanceBound(clear, b1, length) > h + 2 * eps) continue;
+        // The distance at b1, looked up a little farther than needed (8 thicknesses) so
+        // that it tells the next chunks to skip too.
+        const double reach = 9 * h + eps + length;
+        const double d1 = meshDistance(meshes_[m], b1, reach);
+        clear[0] = b1.x;
+        clear[1] = b1.y;
+        clear[2] = b1.z;
+        clear[3] = std::min(d1, reach);
+        const double depth = h - d1;
         if (depth <= 0 && !options_.continuous) continue;
+        if (depth <= 0 && d1 - length > h + 2 * eps) continue;  // the segment stays clear
         const double s = meshImpact(meshes_[m], b0, b1, h, eps);
         if (s >= 1 && depth <= 0) continue;
         const double at = std::min(s, 1.0);

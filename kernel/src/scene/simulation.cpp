@@ -247,7 +247,8 @@ StepStatus Simulation<S>::stepWithContacts() {
     CollisionStats found;
     executor_->run([&] { found = contacts_->resolve(state_.x, nextX_, nextV_, w, t0, t1, *executor_); });
     lastCollision_ += found;
-    if (found.contacts > 0) integrator_->reset();  // the response changed the candidate it may have cached
+    if (found.contacts > 0 || found.edgeContacts > 0)
+      integrator_->reset();  // the response changed the candidate it may have cached
     acceptChunk(h);
     done += ticks;
   }

@@ -175,7 +175,9 @@ class ContactSolver {
   std::int64_t countTunnelled(const Vec3Array<S>& start, const Vec3Array<S>& end, const ScalarArray<S>& w, double t0,
                               double t1) const;
 
-  static constexpr Index kGrain = 1024;
+  /// Particles (and edges) per parallel block: a contact test costs hundreds of
+  /// nanoseconds, so even a 32^2 cloth is split among the threads.
+  static constexpr Index kGrain = 128;
 
  private:
   std::int64_t resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
@@ -192,6 +194,11 @@ class ContactSolver {
     double point[3] = {0, 0, 0};      // the closest point on the mesh edge
     double normal[3] = {0, 0, 0};     // unit, from the mesh edge towards the cloth edge
   };
+  /// Per mesh and particle: a point r (in the mesh's frame) and a clearance c with
+  /// distance(r, mesh) >= c, so that distance(p, mesh) >= c - |p - r| for any p: a
+  /// particle whose whole chunk stays farther than the thickness by this bound skips the
+  /// mesh. A pure optimisation: the results are the same bits as without it.
+  std::vector<double> clearance_;  // (meshes x particles x 4): r, c
   std::vector<Edge> edges_;
   std::vector<EdgeHit> edgeHits_;  // (edges)
 };
