@@ -10,12 +10,35 @@
 //   BM_Bvh_ClothSelfIntersections_<S>    self-intersecting pairs of the 128^2 cloth crumpled by
 //                                        noise (pairs sharing a vertex skipped).
 //
+//   BM_Bvh_ClothSphereOverlaps_<S>      the box-overlap candidates alone (no exact test): what
+//                                        Embree's rtcCollide reports, for the peer ratio.
+//
+// Peers (built only where found; Debian packages, optional): with Embree 3 (libembree-dev),
+//   BM_Peer_Embree_Build   the same meshes, float, as RTC_GEOMETRY_TYPE_TRIANGLE; quality:0 is
+//                          Embree's Morton builder (RTC_BUILD_QUALITY_LOW, like weft's LBVH),
+//                          quality:1 its binned SAH builder (MEDIUM, the default)
+//   BM_Peer_Embree_Refit   RTC_BUILD_QUALITY_REFIT after the vertex buffer changed
+//   BM_Peer_Embree_ClothSphereOverlaps  rtcCollide between the cloth and the 20k sphere as
+//                          user geometries (Embree's collision query needs them): candidates
+// Embree runs on TBB; each benchmark runs inside a task_arena of its thread count and
+// creates its device with "threads=N".
+//
 // The cloth is a paraboloid sheet y = 0.8 (x^2 + z^2) - 0.1 over [-0.5, 0.5]^2 and the sphere
 // has radius 0.3 at the origin: they cut along one closed curve. Every benchmark reports
 // allocs_per_iteration (expected 0: buffers are warmed up before timing).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <limits>
+#include <mutex>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#ifdef WEFT_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
 
 #include "bench_common.hpp"
 #include "weft/collide/bvh.hpp"
@@ -166,6 +189,153 @@ void BM_Bvh_ClothSelfIntersections(benchmark::State& st) {
   st.counters["candidates"] = candidates;
 }
 
+template <class S>
+void BM_Bvh_ClothSphereOverlaps(benchmark::State& st) {
+  const Mesh<S>& cloth = drapedCloth<S>();
+  const Mesh<S>& ball = sphere<S>(32);
+  weft::Executor exec(static_cast<int>(st.range(0)));
+  weft::TriangleBvh<S> clothBvh, ballBvh;
+  clothBvh.build(cloth.x, cloth.triangles, exec);
+  ballBvh.build(ball.x, ball.triangles, exec);
+  weft::BvhPairScratch scratch;
+  std::vector<weft::TrianglePair> pairs;
+  clothBvh.overlappingPairs(ballBvh, pairs, scratch, exec);
+  const std::int64_t before = weftbench::allocationCount();
+  for (auto _ : st) {
+    clothBvh.overlappingPairs(ballBvh, pairs, scratch, exec);
+    benchmark::DoNotOptimize(pairs.data());
+  }
+  reportAllocations(st, before);
+  st.counters["candidates"] = static_cast<double>(pairs.size());
+}
+
+#ifdef WEFT_HAVE_EMBREE
+/// An Embree device and scene over one mesh (float vertices, interleaved and padded as
+/// Embree wants them), triangles or user geometry with the triangles' boxes.
+struct EmbreeMesh {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  RTCGeometry geometry = nullptr;
+  std::vector<float> xyz;  // 3 per vertex + 1 of padding: Embree reads 16 bytes per vertex
+  std::vector<unsigned> indices;
+
+  EmbreeMesh(const Mesh<float>& m, int threads, bool user, RTCBuildQuality quality) {
+    const std::string config = "threads=" + std::to_string(threads);
+    device = rtcNewDevice(config.c_str());
+    const weft::Index nv = m.x.rows(), nt = m.triangles.count();
+    xyz.assign(static_cast<size_t>(3 * nv + 1), 0.0f);
+    for (weft::Index i = 0; i < nv; ++i)
+      for (int k = 0; k < 3; ++k) xyz[static_cast<size_t>(3 * i + k)] = m.x(i, k);
+    indices.resize(static_cast<size_t>(3 * nt));
+    for (weft::Index t = 0; t < nt; ++t) {
+      indices[static_cast<size_t>(3 * t)] = static_cast<unsigned>(m.triangles.a[t]);
+      indices[static_cast<size_t>(3 * t + 1)] = static_cast<unsigned>(m.triangles.b[t]);
+      indices[static_cast<size_t>(3 * t + 2)] = static_cast<unsigned>(m.triangles.c[t]);
+    }
+    scene = rtcNewScene(device);
+    rtcSetSceneBuildQuality(scene, quality == RTC_BUILD_QUALITY_REFIT ? RTC_BUILD_QUALITY_LOW : quality);
+    if (quality == RTC_BUILD_QUALITY_REFIT) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC);
+    if (user) {
+      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(nt));
+      rtcSetGeometryUserData(geometry, this);
+      rtcSetGeometryBoundsFunction(geometry, &EmbreeMesh::bounds, nullptr);
+    } else {
+      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, xyz.data(), 0,
+                                 3 * sizeof(float), static_cast<size_t>(nv));
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, indices.data(), 0,
+                                 3 * sizeof(unsigned), static_cast<size_t>(nt));
+    }
+    rtcSetGeometryBuildQuality(geometry, quality);
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene, geometry);
+  }
+  ~EmbreeMesh() {
+    rtcReleaseGeometry(geometry);
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+  }
+  EmbreeMesh(const EmbreeMesh&) = delete;
+  EmbreeMesh& operator=(const EmbreeMesh&) = delete;
+
+  /// Marks the vertices changed and commits: a rebuild, or a refit with REFIT quality.
+  void commit() {
+    if (rtcGetGeometryUserData(geometry) == nullptr) rtcUpdateGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(geometry);
+    rtcCommitScene(scene);
+  }
+
+  static void bounds(const RTCBoundsFunctionArguments* args) {
+    const auto* self = static_cast<const EmbreeMesh*>(args->geometryUserPtr);
+    const unsigned* corner = &self->indices[3 * static_cast<size_t>(args->primID)];
+    RTCBounds& b = *args->bounds_o;
+    b.lower_x = b.lower_y = b.lower_z = std::numeric_limits<float>::infinity();
+    b.upper_x = b.upper_y = b.upper_z = -std::numeric_limits<float>::infinity();
+    for (int k = 0; k < 3; ++k) {
+      const float* p = &self->xyz[3 * static_cast<size_t>(corner[k])];
+      b.lower_x = std::min(b.lower_x, p[0]);
+      b.lower_y = std::min(b.lower_y, p[1]);
+      b.lower_z = std::min(b.lower_z, p[2]);
+      b.upper_x = std::max(b.upper_x, p[0]);
+      b.upper_y = std::max(b.upper_y, p[1]);
+      b.upper_z = std::max(b.upper_z, p[2]);
+    }
+  }
+};
+
+void BM_Peer_Embree_Build(benchmark::State& st) {
+  const Mesh<float>& mesh = meshByIndex<float>(static_cast<int>(st.range(0)), st);
+  const int threads = static_cast<int>(st.range(1));
+  const RTCBuildQuality quality = st.range(2) == 0 ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
+  weft::Executor exec(threads);
+  exec.run([&] {
+    EmbreeMesh e(mesh, threads, false, quality);
+    e.commit();
+    for (auto _ : st) e.commit();
+  });
+  st.counters["triangles_per_second"] = benchmark::Counter(static_cast<double>(mesh.triangles.count()),
+                                                           benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_Peer_Embree_Refit(benchmark::State& st) {
+  const Mesh<float>& mesh = meshByIndex<float>(static_cast<int>(st.range(0)), st);
+  const int threads = static_cast<int>(st.range(1));
+  weft::Executor exec(threads);
+  exec.run([&] {
+    EmbreeMesh e(mesh, threads, false, RTC_BUILD_QUALITY_REFIT);
+    e.commit();
+    for (auto _ : st) e.commit();
+  });
+  st.counters["triangles_per_second"] = benchmark::Counter(static_cast<double>(mesh.triangles.count()),
+                                                           benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_Peer_Embree_ClothSphereOverlaps(benchmark::State& st) {
+  const int threads = static_cast<int>(st.range(0));
+  weft::Executor exec(threads);
+  std::vector<RTCCollision> found;
+  std::mutex lock;
+  exec.run([&] {
+    EmbreeMesh cloth(drapedCloth<float>(), threads, true, RTC_BUILD_QUALITY_MEDIUM);
+    EmbreeMesh ball(sphere<float>(32), threads, true, RTC_BUILD_QUALITY_MEDIUM);
+    cloth.commit();
+    ball.commit();
+    const auto collect = [](void* user, RTCCollision* collisions, unsigned count) {
+      auto* out = static_cast<std::pair<std::vector<RTCCollision>*, std::mutex*>*>(user);
+      std::lock_guard<std::mutex> guard(*out->second);
+      out->first->insert(out->first->end(), collisions, collisions + count);
+    };
+    std::pair<std::vector<RTCCollision>*, std::mutex*> sink{&found, &lock};
+    for (auto _ : st) {
+      found.clear();
+      rtcCollide(cloth.scene, ball.scene, collect, &sink);
+    }
+  });
+  st.counters["candidates"] = static_cast<double>(found.size());
+}
+#endif
+
 void meshesAndThreads(benchmark::internal::Benchmark* b) {
   for (int mesh : {0, 1})
     for (int threads : {1, 2}) b->Args({mesh, threads});
@@ -186,7 +356,19 @@ WEFT_BVH(BM_Bvh_Refit, float, meshesAndThreads);
 WEFT_BVH(BM_Bvh_Refit, double, meshesAndThreads);
 WEFT_BVH(BM_Bvh_ClothSphereIntersections, float, threads);
 WEFT_BVH(BM_Bvh_ClothSphereIntersections, double, threads);
+WEFT_BVH(BM_Bvh_ClothSphereOverlaps, float, threads);
+WEFT_BVH(BM_Bvh_ClothSphereOverlaps, double, threads);
 WEFT_BVH(BM_Bvh_ClothSelfIntersections, float, threads);
 WEFT_BVH(BM_Bvh_ClothSelfIntersections, double, threads);
+
+#ifdef WEFT_HAVE_EMBREE
+BENCHMARK(BM_Peer_Embree_Build)
+    ->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})
+    ->ArgNames({"mesh", "threads", "quality"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Peer_Embree_Refit)->Apply(meshesAndThreads);
+BENCHMARK(BM_Peer_Embree_ClothSphereOverlaps)->Apply(threads);
+#endif
 
 }  // namespace

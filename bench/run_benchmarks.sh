@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 name="${1:-$(date -u +%Y-%m-%d)-$(hostname -s)}"
 shift || true
-bash tools/setup.sh
+WEFT_PEERS=1 bash tools/setup.sh  # with the optional peers (Embree) for the BVH ratios
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j2 --target weft_bench weft_cli
 mkdir -p bench/results

@@ -17,6 +17,12 @@ packages=(
   clang-14 libclang-rt-14-dev      # tools/fuzz.sh: clang++-14 and its libFuzzer runtime (-fsanitize=fuzzer)
 )
 
+# Peers for the BVH benchmarks, optional (WEFT_PEERS=1 bash tools/setup.sh): weft_bench
+# builds BM_Peer_Embree_* when Embree is found (docs/benchmarks.md).
+if [ "${WEFT_PEERS:-0}" = "1" ]; then
+  packages+=(libembree-dev)
+fi
+
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
