@@ -145,7 +145,8 @@ void BM_Bvh_Refit(benchmark::State& st) {
       benchmark::Counter(static_cast<double>(bvh.triangleCount()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
-template <class S>
+/// kExact: the intersecting pairs (exact test); otherwise the box-overlap candidates alone.
+template <class S, bool kExact = true>
 void BM_Bvh_ClothSphereIntersections(benchmark::State& st) {
   const Mesh<S>& cloth = drapedCloth<S>();
   const Mesh<S>& ball = sphere<S>(32);
@@ -160,7 +161,10 @@ void BM_Bvh_ClothSphereIntersections(benchmark::State& st) {
   clothBvh.intersectingPairs(ballBvh, cloth.x, ball.x, pairs, scratch, exec);
   const std::int64_t before = weftbench::allocationCount();
   for (auto _ : st) {
-    clothBvh.intersectingPairs(ballBvh, cloth.x, ball.x, pairs, scratch, exec);
+    if constexpr (kExact)
+      clothBvh.intersectingPairs(ballBvh, cloth.x, ball.x, pairs, scratch, exec);
+    else
+      clothBvh.overlappingPairs(ballBvh, pairs, scratch, exec);
     benchmark::DoNotOptimize(pairs.data());
   }
   reportAllocations(st, before);
@@ -187,26 +191,6 @@ void BM_Bvh_ClothSelfIntersections(benchmark::State& st) {
   reportAllocations(st, before);
   st.counters["pairs"] = static_cast<double>(pairs.size());
   st.counters["candidates"] = candidates;
-}
-
-template <class S>
-void BM_Bvh_ClothSphereOverlaps(benchmark::State& st) {
-  const Mesh<S>& cloth = drapedCloth<S>();
-  const Mesh<S>& ball = sphere<S>(32);
-  weft::Executor exec(static_cast<int>(st.range(0)));
-  weft::TriangleBvh<S> clothBvh, ballBvh;
-  clothBvh.build(cloth.x, cloth.triangles, exec);
-  ballBvh.build(ball.x, ball.triangles, exec);
-  weft::BvhPairScratch scratch;
-  std::vector<weft::TrianglePair> pairs;
-  clothBvh.overlappingPairs(ballBvh, pairs, scratch, exec);
-  const std::int64_t before = weftbench::allocationCount();
-  for (auto _ : st) {
-    clothBvh.overlappingPairs(ballBvh, pairs, scratch, exec);
-    benchmark::DoNotOptimize(pairs.data());
-  }
-  reportAllocations(st, before);
-  st.counters["candidates"] = static_cast<double>(pairs.size());
 }
 
 #ifdef WEFT_HAVE_EMBREE
@@ -356,6 +340,10 @@ WEFT_BVH(BM_Bvh_Refit, float, meshesAndThreads);
 WEFT_BVH(BM_Bvh_Refit, double, meshesAndThreads);
 WEFT_BVH(BM_Bvh_ClothSphereIntersections, float, threads);
 WEFT_BVH(BM_Bvh_ClothSphereIntersections, double, threads);
+template <class S>
+void BM_Bvh_ClothSphereOverlaps(benchmark::State& st) {
+  BM_Bvh_ClothSphereIntersections<S, false>(st);
+}
 WEFT_BVH(BM_Bvh_ClothSphereOverlaps, float, threads);
 WEFT_BVH(BM_Bvh_ClothSphereOverlaps, double, threads);
 WEFT_BVH(BM_Bvh_ClothSelfIntersections, float, threads);

@@ -616,6 +616,12 @@ template <class S>
 V row(const Vec3Array<S>& x, Index i) {
   return {double(x(i, 0)), double(x(i, 1)), double(x(i, 2))};
 }
+template <class S>
+void setRow(Vec3Array<S>& x, Index i, V p) {
+  x(i, 0) = static_cast<S>(p.x);
+  x(i, 1) = static_cast<S>(p.y);
+  x(i, 2) = static_cast<S>(p.z);
+}
 
 // Deepest penetration (thickness - distance) of the point p at time t over every obstacle:
 // negative when clear (minus the smallest gap; -infinity when no mesh is within the thickness).
@@ -760,12 +766,8 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       const V p = c.obstacle ? respondAnalytic(options_, c, p0, p1, vel)
                              : respondMesh(options_, options_.meshes[static_cast<size_t>(c.mesh)],
                                            meshes_[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel);
-      x1(i, 0) = static_cast<S>(p.x);
-      x1(i, 1) = static_cast<S>(p.y);
-      x1(i, 2) = static_cast<S>(p.z);
-      v1(i, 0) = static_cast<S>(vel.x);
-      v1(i, 1) = static_cast<S>(vel.y);
-      v1(i, 2) = static_cast<S>(vel.z);
+      setRow(x1, i, p);
+      setRow(v1, i, vel);
     }
     blockHits_[block] = hits;
     blockCcd_[block] = ccd;
@@ -857,20 +859,12 @@ std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>
     }
     const V ai = toWorld(mo, a, t1), bj = toWorld(mo, b, t1);
     if (wi > 0) {
-      x1(i, 0) = static_cast<S>(ai.x);
-      x1(i, 1) = static_cast<S>(ai.y);
-      x1(i, 2) = static_cast<S>(ai.z);
-      v1(i, 0) = static_cast<S>(vi1.x);
-      v1(i, 1) = static_cast<S>(vi1.y);
-      v1(i, 2) = static_cast<S>(vi1.z);
+      setRow(x1, i, ai);
+      setRow(v1, i, vi1);
     }
     if (wj > 0) {
-      x1(j, 0) = static_cast<S>(bj.x);
-      x1(j, 1) = static_cast<S>(bj.y);
-      x1(j, 2) = static_cast<S>(bj.z);
-      v1(j, 0) = static_cast<S>(vj1.x);
-      v1(j, 1) = static_cast<S>(vj1.y);
-      v1(j, 2) = static_cast<S>(vj1.z);
+      setRow(x1, j, bj);
+      setRow(v1, j, vj1);
     }
   }
   return hits;

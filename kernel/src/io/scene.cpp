@@ -984,9 +984,11 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     body.rope = ropeSpec(n);
     body.pins.push_back({{0}, std::nullopt, std::nullopt});
     scene.simulation.dt = defaultTimeStep(BuiltinScene::Rope, n);
-  } else if (name == "drape") {
-    // A free 1 m cloth (size x size, default 32) falling from 0.5 m onto a sphere of radius
-    // 0.3 m at the origin, a floor 0.4 m below its centre; 2 s.
+  } else if (name == "drape" || name == "drape-mesh") {
+    // A free 1 m cloth (size x size, default 32) falling from 0.5 m, a floor at y = -0.4; 2 s.
+    // drape: onto a sphere of radius 0.3 m at the origin. drape-mesh: onto a torus lying
+    // flat around the origin (major radius 0.3 m, tube 0.1 m: 1536 triangles), imported
+    // from the OBJ file embedded in the library (tools/scenes/meshes/torus.obj, in cm).
     const Index n = size > 0 ? size : 32;
     if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
     body.kind = BodyKind::ClothGrid;
@@ -996,29 +998,16 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
     scene.steps = static_cast<std::int64_t>(std::ceil(2.0 / scene.simulation.dt));
     scene.simulation.effects.drag = 1e-3;
-    scene.simulation.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.3));
+    if (name == "drape") scene.simulation.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.3));
     scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
-  } else if (name == "drape-mesh") {
-    // The drape scene's cloth (size x size, default 32) falling from 0.5 m onto a torus
-    // lying flat around the origin (major radius 0.3 m, tube 0.1 m: 1536 triangles), imported
-    // from the OBJ file embedded in the library (tools/scenes/meshes/torus.obj, in cm), and a
-    // floor at y = -0.4; 2 s.
-    const Index n = size > 0 ? size : 32;
-    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
-    body.kind = BodyKind::ClothGrid;
-    body.name = "cloth";
-    body.grid = flagSpec(n);
-    body.grid.origin = {-0.5, 0.5, -0.5};
-    scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
-    scene.steps = static_cast<std::int64_t>(std::ceil(2.0 / scene.simulation.dt));
-    scene.simulation.effects.drag = 1e-3;
-    scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
-    MeshObstacleSpec torus;
-    torus.obstacle.name = "torus";
-    torus.meshFile = "torus.obj";
-    torus.meshContents = std::string(builtinTorusObj());
-    torus.scale = 0.01;
-    scene.meshObstacles.push_back(std::move(torus));
+    if (name == "drape-mesh") {
+      MeshObstacleSpec torus;
+      torus.obstacle.name = "torus";
+      torus.meshFile = "torus.obj";
+      torus.meshContents = std::string(builtinTorusObj());
+      torus.scale = 0.01;
+      scene.meshObstacles.push_back(std::move(torus));
+    }
   } else if (name == "rope-on-pegs") {
     // A free 1 m rope (size particles, default 64) falling from 0.3 m across three pegs
     // (capsules along z, radius 3 cm, at x = 0.2, 0.5, 0.8, y = 0), a floor at y = -0.6; 2 s.
