@@ -278,8 +278,8 @@ void BM_Peer_Embree_Build(benchmark::State& st) {
     e.commit();
     for (auto _ : st) e.commit();
   });
-  st.counters["triangles_per_second"] = benchmark::Counter(static_cast<double>(mesh.triangles.count()),
-                                                           benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["triangles_per_second"] =
+      benchmark::Counter(static_cast<double>(mesh.triangles.count()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
 void BM_Peer_Embree_Refit(benchmark::State& st) {
@@ -291,8 +291,8 @@ void BM_Peer_Embree_Refit(benchmark::State& st) {
     e.commit();
     for (auto _ : st) e.commit();
   });
-  st.counters["triangles_per_second"] = benchmark::Counter(static_cast<double>(mesh.triangles.count()),
-                                                           benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["triangles_per_second"] =
+      benchmark::Counter(static_cast<double>(mesh.triangles.count()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
 void BM_Peer_Embree_ClothSphereOverlaps(benchmark::State& st) {

@@ -134,8 +134,8 @@ void BM_Scene_Drape(benchmark::State& st) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   st.counters["steps_per_second"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate);
   st.counters["collision_share"] = (sim.effectTimes().collision - collisionBefore) / (wall * sim.threadCount());
-  st.counters["contacts"] = static_cast<double>(
-      sim.contactSolver()->countContacts(settled.x, sim.model().inverseMass(), settled.time));
+  st.counters["contacts"] =
+      static_cast<double>(sim.contactSolver()->countContacts(settled.x, sim.model().inverseMass(), settled.time));
 }
 BENCHMARK(BM_Scene_Drape<float>)
     ->ArgsProduct({{0, 1}, {1, 2}})

@@ -188,8 +188,9 @@ TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
       {"collision", R"({"bodies": [{"type": "rope"}], "collision": {"zz_unknown": 1})" + tail},
   };
   for (const char* type : {"plane", "sphere", "capsule", "box", "mesh"})
-    probes["obstacle." + std::string(type)] = R"({"bodies": [{"type": "rope"}], "collision": {"obstacles": [{"type": ")" +
-                                               std::string(type) + R"(", "zz_unknown": 1}]})" + tail;
+    probes["obstacle." + std::string(type)] =
+        R"({"bodies": [{"type": "rope"}], "collision": {"obstacles": [{"type": ")" + std::string(type) +
+        R"(", "zz_unknown": 1}]})" + tail;
   auto used = exampleKeys();
   EXPECT_TRUE(used["pin"].count("(index)")) << "no example pins a particle by a bare index";
   for (const auto& [where, json] : probes) {
@@ -542,7 +543,8 @@ TEST(SceneBadFiles, MeshObstaclesThatCannotBeReadFailAtAssembly) {
   const std::string points = writeTemp("points.obj", "v 0 0 0\nv 1 0 0\np 1\n");
   for (const std::string& file : {garbage, points}) {
     const SceneSpec s = parseScene(R"({"name": "obstacle-file", "bodies": [{"type": "rope"}], "dt": 0.001,
-        "steps": 1, "collision": {"obstacles": [{"type": "mesh", "name": "rock", "mesh": ")" + file + R"("}]}})");
+        "steps": 1, "collision": {"obstacles": [{"type": "mesh", "name": "rock", "mesh": ")" +
+                                   file + R"("}]}})");
     const std::string message = sceneError([&] { assembleScene<double>(s); });
     EXPECT_THAT(message, HasSubstr("obstacle-file: mesh obstacle 0 (rock): mesh file '" + file + "'"));
   }
@@ -785,8 +787,8 @@ const std::vector<BadScene>& badScenes() {
       {"collision_negative_resting_speed", top(R"(, "collision": {"resting_speed": -1, "obstacles": []})"),
        "collision.resting_speed", "got -1"},
       {"obstacle_number", top(R"(, "collision": {"obstacles": [3]})"), "collision.obstacles[0]", "number 3"},
-      {"obstacle_without_type", top(R"(, "collision": {"obstacles": [{"radius": 1}]})"),
-       "collision.obstacles[0].type", "is required: plane, sphere, capsule, box or mesh"},
+      {"obstacle_without_type", top(R"(, "collision": {"obstacles": [{"radius": 1}]})"), "collision.obstacles[0].type",
+       "is required: plane, sphere, capsule, box or mesh"},
       {"obstacle_unknown_type", top(R"(, "collision": {"obstacles": [{"type": "cone"}]})"),
        "collision.obstacles[0].type", R"(got "cone")"},
       {"obstacle_unknown_key",

@@ -41,13 +41,13 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   weftcli::RunOptions run;
   CLI::App* cmd = app.add_subcommand("run", "Run a built-in scene and print its figures");
-  cmd->add_option(
-      "scene", run.scene,
-      "A built-in scene (flag: 64 x 64 cloth pinned at two corners; rope; flag-wind: a flag on a pole "
-      "in gusty wind; hanging-cloth: cloth on a turning bar; drape: cloth onto a sphere; drape-mesh: cloth onto an imported torus mesh; rope-on-pegs: a rope "
-      "across three capsules; fast-ball: 100 m/s at a one-triangle wall) or a JSON scene file "
-      "(docs/scenes.md). "
-      "Options given below override the scene's values");
+  cmd->add_option("scene", run.scene,
+                  "A built-in scene (flag: 64 x 64 cloth pinned at two corners; rope; flag-wind: a flag on a pole "
+                  "in gusty wind; hanging-cloth: cloth on a turning bar; drape: cloth onto a sphere; drape-mesh: cloth "
+                  "onto an imported torus mesh; rope-on-pegs: a rope "
+                  "across three capsules; fast-ball: 100 m/s at a one-triangle wall) or a JSON scene file "
+                  "(docs/scenes.md). "
+                  "Options given below override the scene's values");
   cmd->add_option("--size", run.size, "Built-in scenes: grid side (cloth) or particle count (rope); default 64")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);

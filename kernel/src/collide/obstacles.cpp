@@ -336,9 +336,9 @@ double closestSegmentSegment(V p1, V q1, V p2, V q2, double& s, double& t, V& c1
 // The mesh edge closest to the segment A B, among the triangles whose boxes overlap `box`.
 struct EdgeProbe {
   double distance = std::numeric_limits<double>::infinity();
-  double alpha = 0;      // along A B
-  V onEdge{0, 0, 0};     // on A B
-  V onMesh{0, 0, 0};     // on the mesh edge
+  double alpha = 0;   // along A B
+  V onEdge{0, 0, 0};  // on A B
+  V onMesh{0, 0, 0};  // on the mesh edge
 };
 EdgeProbe closestMeshEdge(const MeshCollider& c, V a, V b, const Aabb<double>& box) {
   EdgeProbe best;
@@ -418,7 +418,8 @@ std::vector<std::uint8_t> featureEdges(const MeshCollider& c, double degrees) {
     while (e < sides.size() && sides[e].lo == sides[g].lo && sides[e].hi == sides[g].hi) ++e;
     bool feature = e - g != 2 || degrees == 0;
     if (!feature) {
-      const V n1 = normals[static_cast<size_t>(sides[g].triangle)], n2 = normals[static_cast<size_t>(sides[g + 1].triangle)];
+      const V n1 = normals[static_cast<size_t>(sides[g].triangle)],
+              n2 = normals[static_cast<size_t>(sides[g + 1].triangle)];
       feature = dot(n1, n1) == 0 || dot(n2, n2) == 0 || dot(n1, n2) <= cosLimit;
     }
     if (feature) {

@@ -48,7 +48,6 @@ constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_PreTransform
 
 /// Every triangle of an imported scene; `path` names the source in messages.
 TriangleMesh collectTriangles(const aiScene* scene, const std::string& path) {
-
   constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
   TriangleMesh mesh;
   size_t points = 0, lines = 0, polygons = 0;

@@ -665,8 +665,8 @@ void readSurface(const Reader& r, const Json& j, const std::string& f, T& o) {
   o.staticFriction = r.number(j, f, "static_friction", o.staticFriction, 0, true, "");
   o.kineticFriction = r.number(j, f, "kinetic_friction", std::min(o.kineticFriction, o.staticFriction), 0, true, "");
   if (o.kineticFriction > o.staticFriction)
-    r.fail(Reader::join(f, "kinetic_friction"), "must be <= static_friction (" + fmt(o.staticFriction) + "), got " +
-                                                    fmt(o.kineticFriction));
+    r.fail(Reader::join(f, "kinetic_friction"),
+           "must be <= static_friction (" + fmt(o.staticFriction) + "), got " + fmt(o.kineticFriction));
 }
 
 /// The `collision` section: options, analytic obstacles into `c`, mesh obstacles (read at
@@ -684,8 +684,7 @@ void readCollision(const Reader& r, const Json& j, const std::string& f, const s
     r.fail(Reader::join(f, "feature_angle"), "must be <= 180 degrees, got " + shortDump(j["feature_angle"]));
   c.epsilon = r.number(j, f, "epsilon", std::min(c.epsilon, 0.5 * c.thickness), 0, false, " m");
   if (!(c.epsilon < c.thickness))
-    r.fail(Reader::join(f, "epsilon"),
-           "must be < thickness (" + fmt(c.thickness) + " m), got " + fmt(c.epsilon));
+    r.fail(Reader::join(f, "epsilon"), "must be < thickness (" + fmt(c.thickness) + " m), got " + fmt(c.epsilon));
   c.restingSpeed = r.number(j, f, "resting_speed", c.restingSpeed, 0, true, " m/s");
   c.maxPenetration = r.number(j, f, "max_penetration", c.maxPenetration, 0, true, " m");
   c.maxHalvings = static_cast<int>(r.integer(j, f, "max_halvings", c.maxHalvings, 0, 30));
@@ -698,8 +697,7 @@ void readCollision(const Reader& r, const Json& j, const std::string& f, const s
     const std::string fk = fo + "[" + std::to_string(k) + "]";
     const Json& e = list[k];
     if (!e.is_object()) r.fail(fk, std::string("must be an object, got ") + typeName(e) + " " + shortDump(e));
-    if (!e.contains("type"))
-      r.fail(Reader::join(fk, "type"), "is required: plane, sphere, capsule, box or mesh");
+    if (!e.contains("type")) r.fail(Reader::join(fk, "type"), "is required: plane, sphere, capsule, box or mesh");
     const std::string type = r.choice(e, fk, "type", "", {"plane", "sphere", "capsule", "box", "mesh"});
     const auto require = [&](std::initializer_list<const char*> needed) {
       for (const char* key : needed)
@@ -739,7 +737,8 @@ void readCollision(const Reader& r, const Json& j, const std::string& f, const s
       o = Obstacle::capsule(r.vector(e, fk, "a", {}), r.vector(e, fk, "b", {}),
                             r.number(e, fk, "radius", 0, 0, false, " m"));
     } else {
-      r.object(e, fk, {"type", "center", "half_extents", "radius", "restitution", "static_friction", "kinetic_friction"});
+      r.object(e, fk,
+               {"type", "center", "half_extents", "radius", "restitution", "static_friction", "kinetic_friction"});
       require({"center", "half_extents"});
       o = Obstacle::box(r.vector(e, fk, "center", {}), r.vector(e, fk, "half_extents", {}));
       const Vec3d& h = o.halfExtents;

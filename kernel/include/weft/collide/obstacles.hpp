@@ -190,9 +190,9 @@ class ContactSolver {
   /// What the edge pass found for one edge, in the frame of mesh `mesh` (-1: nothing).
   struct EdgeHit {
     int mesh = -1;
-    double alpha = 0;                 // the contact point's parameter along the edge, 0 .. 1
-    double point[3] = {0, 0, 0};      // the closest point on the mesh edge
-    double normal[3] = {0, 0, 0};     // unit, from the mesh edge towards the cloth edge
+    double alpha = 0;              // the contact point's parameter along the edge, 0 .. 1
+    double point[3] = {0, 0, 0};   // the closest point on the mesh edge
+    double normal[3] = {0, 0, 0};  // unit, from the mesh edge towards the cloth edge
   };
   /// Per mesh and particle: a point r (in the mesh's frame) and a clearance c with
   /// distance(r, mesh) >= c, so that distance(p, mesh) >= c - |p - r| for any p: a

@@ -70,12 +70,12 @@ struct BodySpec {
 /// `translate` (like a cloth_mesh body), and becomes `obstacle.mesh`; the rest of
 /// `obstacle` (name, path, restitution, friction) is used as given.
 struct MeshObstacleSpec {
-  MeshObstacle obstacle;      // its mesh is filled at assembly
-  std::string meshFile;       // any format assimp reads (a scene file's paths are resolved against its directory)
-  std::string meshContents;   // not empty: the file's contents, in memory (built-in scenes); meshFile names it
-  MeshCleanOptions clean;     // weld tolerance
-  double scale = 1;           // > 0
-  Vec3d translate{0, 0, 0};   // m
+  MeshObstacle obstacle;     // its mesh is filled at assembly
+  std::string meshFile;      // any format assimp reads (a scene file's paths are resolved against its directory)
+  std::string meshContents;  // not empty: the file's contents, in memory (built-in scenes); meshFile names it
+  MeshCleanOptions clean;    // weld tolerance
+  double scale = 1;          // > 0
+  Vec3d translate{0, 0, 0};  // m
 };
 
 struct OutputSpec {
@@ -87,7 +87,7 @@ struct OutputSpec {
 struct SceneSpec {
   std::string name = "scene";
   std::vector<BodySpec> bodies;
-  SimulationOptions simulation;  // integrator, dt, threads, strategy, gravity, effects, collision, ...
+  SimulationOptions simulation;                 // integrator, dt, threads, strategy, gravity, effects, collision, ...
   std::vector<MeshObstacleSpec> meshObstacles;  // appended to simulation.collision.meshes at assembly
   Precision precision = Precision::Double;
   std::int64_t steps = 0;  // > 0: run this many steps
