@@ -36,8 +36,9 @@ namespace {
 using ::testing::HasSubstr;
 
 const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
-const std::vector<std::string> kExamples = {"rope",       "flag-wind",    "cloth-mesh", "hanging-cloth", "drape",
-                                            "drape-mesh", "rope-on-pegs", "fast-ball",  "tablecloth"};
+const std::vector<std::string> kExamples = {"rope",       "flag-wind",     "cloth-mesh",   "hanging-cloth",
+                                            "drape",      "drape-mesh",    "rope-on-pegs", "fast-ball",
+                                            "tablecloth", "ball-on-brick", "stack",        "rigid-showcase"};
 
 std::string examplePath(const std::string& name) { return kScenes + "/" + name + ".json"; }
 
@@ -140,7 +141,20 @@ std::map<std::string, std::set<std::string>> exampleKeys() {
         if (o.contains("path")) keys("path", o["path"]);
       }
     }
-    for (const auto& body : root["bodies"]) {
+    if (root.contains("rigid_bodies")) {
+      const nlohmann::json& rigid = root["rigid_bodies"];
+      keys("rigid_bodies", rigid);
+      for (const auto& b : rigid["bodies"]) {
+        keys("rigid_body", b);
+        if (b.contains("orientation")) keys("rotation", b["orientation"]);
+        if (b.contains("path")) keys("path", b["path"]);
+        for (const auto& shape : b["shapes"]) {
+          keys("shape." + shape["type"].get<std::string>(), shape);
+          if (shape.contains("rotation")) keys("rotation", shape["rotation"]);
+        }
+      }
+    }
+    for (const auto& body : root.value("bodies", nlohmann::json::array())) {
       const std::string type = body["type"];
       keys(type, body);
       if (body.contains("materials")) {
@@ -187,6 +201,15 @@ TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
       {"output", R"({"bodies": [{"type": "rope"}], "output": {"zz_unknown": 1})" + tail},
       {"collision", R"({"bodies": [{"type": "rope"}], "collision": {"zz_unknown": 1})" + tail},
   };
+  const std::string rigidTail = R"(, "dt": 0.001, "steps": 1})";
+  probes["rigid_bodies"] = R"({"rigid_bodies": {"zz_unknown": 1, "bodies": []})" + rigidTail;
+  probes["rigid_body"] = R"({"rigid_bodies": {"bodies": [{"zz_unknown": 1}]})" + rigidTail;
+  probes["rotation"] =
+      R"({"rigid_bodies": {"bodies": [{"orientation": {"zz_unknown": 1}, "shapes": [{"type": "sphere", "radius": 1}]}]})" +
+      rigidTail;
+  for (const char* type : {"box", "sphere", "hull"})
+    probes["shape." + std::string(type)] = R"({"rigid_bodies": {"bodies": [{"shapes": [{"type": ")" +
+                                           std::string(type) + R"(", "zz_unknown": 1}]}]})" + rigidTail;
   for (const char* type : {"plane", "sphere", "capsule", "box", "mesh"})
     probes["obstacle." + std::string(type)] =
         R"({"bodies": [{"type": "rope"}], "collision": {"obstacles": [{"type": ")" + std::string(type) +
@@ -300,6 +323,25 @@ TEST(SceneExamples, CollisionScenesStepLikeTheBuiltinScenesBitForBit) {
     const int steps = name == "fast-ball" ? 60 : 4;
     expectTwins<float>(file, builtin, steps);
     expectTwins<double>(file, builtin, steps);
+  }
+}
+
+TEST(SceneExamples, RigidBodyScenesStepLikeTheBuiltinScenesBitForBit) {
+  for (const std::string name : {"ball-on-brick", "stack"}) {
+    SCOPED_TRACE(name);
+    const SceneSpec file = readSceneFile(examplePath(name));
+    const SceneSpec builtin = builtinSceneSpec(name);
+    EXPECT_EQ(sceneStepCount(file), sceneStepCount(builtin));
+    AssembledScene<double> a = assembleScene<double>(file), b = assembleScene<double>(builtin);
+    EXPECT_EQ(a.built.model.particleCount(), 0);
+    a.options.threads = b.options.threads = 2;
+    Simulation<double> simA(std::move(a.built), a.options), simB(std::move(b.built), b.options);
+    ASSERT_NE(simA.rigidWorld(), nullptr);
+    ASSERT_TRUE(simA.run(60).ok());
+    ASSERT_TRUE(simB.run(60).ok());
+    EXPECT_EQ(simA.rigidWorld()->model().bodyCount(), simB.rigidWorld()->model().bodyCount());
+    EXPECT_EQ(rigidStateHash(simA.rigidWorld()->state()), rigidStateHash(simB.rigidWorld()->state()));
+    EXPECT_GT(simA.rigidWorld()->lastStats().contacts, 0);
   }
 }
 
@@ -613,6 +655,14 @@ std::string top(const std::string& extra) {
   return R"({"bodies": [{"type": "rope"}], "dt": 0.001, "steps": 10)" + extra + "}";
 }
 std::string noTiming(const std::string& extra) { return R"({"bodies": [{"type": "rope"}])" + extra + "}"; }
+/// A scene of rigid bodies only: a floor and one body with `extra` keys (and `section`
+/// keys in the rigid_bodies object).
+std::string rigid(const std::string& extra, const std::string& section = "") {
+  return R"({"dt": 0.01, "steps": 10, "rigid_bodies": {)" + section +
+         R"("bodies": [{"motion": "static", "shapes": [{"type": "box", "half_extents": [1, 1, 1]}]},
+                        {"shapes": [{"type": "sphere", "radius": 0.1}], "position": [0, 2, 0])" +
+         extra + "}]}}";
+}
 std::string timing(const std::string& dt, const std::string& steps) {
   return R"({"bodies": [{"type": "rope"}], "dt": )" + dt + R"(, "steps": )" + steps + "}";
 }
@@ -840,6 +890,46 @@ const std::vector<BadScene>& badScenes() {
        top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj",
                                              "path": {"start": 2, "end": 1}}]})"),
        "collision.obstacles[0].path.end", "must be >= start (2 s), got 1"},
+      // Rigid bodies
+      {"rigid_no_bodies", R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": []}})", "rigid_bodies.bodies",
+       "must be a non-empty array, got array []"},
+      {"rigid_unknown_key", rigid(R"(, "colour": 1)"), "rigid_bodies.bodies[1].colour",
+       "allowed keys here: name, motion, shapes"},
+      {"rigid_bad_motion", rigid(R"(, "motion": "floating")"), "rigid_bodies.bodies[1].motion",
+       R"(must be one of static, kinematic, dynamic; got "floating")"},
+      {"rigid_no_shapes", R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"position": [0, 1, 0]}]}})",
+       "rigid_bodies.bodies[0].shapes", "is required"},
+      {"rigid_negative_radius",
+       R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"shapes": [{"type": "sphere", "radius": -1}]}]}})",
+       "rigid_bodies.bodies[0].shapes[0].radius", "must be > 0 m, got -1"},
+      {"rigid_flat_box",
+       R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"shapes": [{"type": "box", "half_extents": [1, 0, 1]}]}]}})",
+       "rigid_bodies.bodies[0].shapes[0].half_extents", "must be > 0 m in every axis, got [1,0,1]"},
+      {"rigid_hull_three_points",
+       R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"shapes": [{"type": "hull", "points": [[0,0,0],[1,0,0],[0,1,0]]}]}]}})",
+       "rigid_bodies.bodies[0].shapes[0].points", "at least 4 points"},
+      {"rigid_hull_flat",
+       R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"shapes": [{"type": "hull", "points": [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]}]}]}})",
+       "rigid_bodies", "bodies[0].shapes[0]"},
+      {"rigid_hull_point_not_a_vector",
+       R"({"dt": 0.01, "steps": 10, "rigid_bodies": {"bodies": [{"shapes": [{"type": "hull", "points": [[0,0,0],[1,0,0],[0,1],[1,1,1]]}]}]}})",
+       "rigid_bodies.bodies[0].shapes[0].points[2]", "must be an array of 3 numbers"},
+      {"rigid_kinetic_above_static", rigid(R"(, "static_friction": 0.2, "kinetic_friction": 0.5)"),
+       "rigid_bodies.bodies[1].kinetic_friction", "must be <= static_friction (0.2), got 0.5"},
+      {"rigid_restitution_above_one", rigid(R"(, "restitution": 1.5)"), "rigid_bodies.bodies[1].restitution",
+       "must be <= 1, got 1.5"},
+      {"rigid_zero_density", rigid(R"(, "density": 0)"), "rigid_bodies.bodies[1].density", "must be > 0 kg/m^3, got 0"},
+      {"rigid_path_on_dynamic", rigid(R"(, "path": {"velocity": [1, 0, 0]})"), "rigid_bodies.bodies[1].path",
+       "is for kinematic bodies only"},
+      {"rigid_orientation_zero_axis", rigid(R"(, "orientation": {"axis": [0, 0, 0], "degrees": 10})"),
+       "rigid_bodies.bodies[1].orientation.axis", "must be a direction"},
+      {"rigid_bad_narrow_phase", rigid("", R"("narrow_phase": "gjk", )"), "rigid_bodies.narrow_phase",
+       R"(must be one of exact, ofg, witness; got "gjk")"},
+      {"rigid_zero_iterations", rigid("", R"("velocity_iterations": 0, )"), "rigid_bodies.velocity_iterations",
+       "must be in [1, 1000], got 0"},
+      {"rigid_penetration_rate_above_one", rigid("", R"("penetration_rate": 2, )"), "rigid_bodies.penetration_rate",
+       "must be <= 1, got 2"},
+      {"no_bodies_at_all", R"({"dt": 0.01, "steps": 10})", "bodies", "is required (or rigid_bodies)"},
       {"mesh_obstacle_unknown_key",
        top(R"(, "collision": {"obstacles": [{"type": "mesh", "mesh": "meshes/wall.obj", "radius": 1}]})"),
        "collision.obstacles[0].radius", "allowed keys here: type, name, mesh"},

@@ -71,6 +71,12 @@ int main(int argc, char** argv) {
       ->check(finiteNonNegative);
   cmd->add_option("--strategy", run.strategy, "Force accumulation: auto | gather | coloured | grid-stencil")
       ->check(CLI::IsMember({"auto", "gather", "coloured", "colored", "grid-stencil", "grid"}));
+  cmd->add_option("--narrow-phase", run.narrowPhase,
+                  "Rigid bodies: exact (separating axes) | ofg (Opposing Face Geometry) | witness (cached "
+                  "separating plane, default)")
+      ->check(CLI::IsMember({"exact", "ofg", "witness"}));
+  cmd->add_option("--ofg-faces", run.ofgFaces, "Rigid bodies: faces per side the Opposing Face Geometry keeps (k >= 1)")
+      ->check(CLI::Range(1, 1024));
   CLI::Option* out = cmd->add_option("--out", run.out, "Write frames into this directory (created)");
   cmd->add_option("--format", run.format, "Frame format: obj | ply | cache (one frames.wcache); default obj")
       ->check(CLI::IsMember({"obj", "ply", "cache"}))

@@ -171,6 +171,12 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
   if (o.precision) spec.precision = *o.precision == "float" ? weft::Precision::Float : weft::Precision::Double;
   if (o.threads) sim.threads = *o.threads;
   if (o.strategy) sim.forceStrategy = weft::parseForceStrategy(*o.strategy);
+  if (o.narrowPhase) {
+    sim.rigid.narrowPhase.method = *o.narrowPhase == "exact" ? weft::NarrowPhaseMethod::Exact
+                                   : *o.narrowPhase == "ofg" ? weft::NarrowPhaseMethod::Ofg
+                                                             : weft::NarrowPhaseMethod::Witness;
+  }
+  if (o.ofgFaces) sim.rigid.narrowPhase.ofgFaces = *o.ofgFaces;
   if (o.out) spec.output.directory = *o.out;
   if (o.format) spec.output.format = *o.format;
   if (o.every) spec.output.every = *o.every;
@@ -184,6 +190,7 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
   if (o.effects.repulsion.enabled()) names.emplace_back("repulsion");
   if (!o.kinematicPins.empty()) names.emplace_back("kinematic_pins");
   if (o.collision.any()) names.emplace_back("collision");
+  if (!o.rigid.bodies.empty()) names.emplace_back("rigid_bodies");
   return names;
 }
 
@@ -230,10 +237,13 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const double stepsPerSecond = wall > 0 ? static_cast<double>(done) / wall : 0;
   const double springEvals = static_cast<double>(sim.forceEvaluations()) * model.springCount();
   const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
-  const std::string hash = hex(weft::stateHash(state));
+  const weft::RigidWorld* rigid = sim.rigidWorld();
+  // With rigid bodies the hash covers them too (equal for any thread count, like the particles').
+  const std::string hash =
+      hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
   const auto byClass = model.springCountByClass();
   const Energy e = energy(model, state, options.gravity);
-  const double lowest = static_cast<double>(state.x.col(1).minCoeff());
+  const double lowest = model.particleCount() > 0 ? static_cast<double>(state.x.col(1).minCoeff()) : 0.0;
   const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
   const weft::SceneEffectTimes times = sim.effectTimes();
   const auto effectSeconds = [&](const std::string& name) {
@@ -241,6 +251,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (name == "wind") return times.forces.wind;
     if (name == "repulsion") return times.forces.repulsion;
     if (name == "collision") return times.collision;
+    if (name == "rigid_bodies") return times.rigidBodies;
     return times.kinematicPins;
   };
 
@@ -291,6 +302,22 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["edge_contacts"] = sim.totalCollision().edgeContacts;
       j["tunnelled"] = contacts->countTunnelled(initial->x, state.x, w, 0.0, t);
     }
+    if (rigid) {
+      // Bodies, their contacts at the last step, the deepest penetration then (m), the
+      // narrow phase and how often its witness cache answered alone over the run.
+      const weft::RigidStats& last = rigid->lastStats();
+      const weft::RigidStats& total = rigid->totalStats();
+      j["rigid_bodies"] = rigid->model().bodyCount();
+      j["body_contacts"] = last.contacts;
+      j["body_touching_pairs"] = last.touchingPairs;
+      j["body_max_penetration"] = last.maxPenetration;
+      j["body_energy"] = rigid->energy();
+      j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
+      j["narrow_queries"] = total.narrowQueries;
+      j["witness_hit_rate"] = total.narrowQueries > 0
+                                  ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
+                                  : 0.0;
+    }
     if (!assembled.meshReports.empty()) j["meshes"] = assembled.meshReports;
     if (frames) {
       j["frames_written"] = frames->written();
@@ -312,8 +339,18 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n";
     out << "  effects      springs, gravity";
     for (const std::string& name : effects) out << ", " << name << " (" << effectSeconds(name) << " CPU s)";
-    out << "\n"
-        << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
+    out << "\n";
+    if (rigid) {
+      const weft::RigidStats& total = rigid->totalStats();
+      out << "  rigid bodies " << rigid->model().bodyCount() << " bodies, " << rigid->lastStats().contacts
+          << " contacts at the end (deepest " << rigid->lastStats().maxPenetration << " m), narrow phase "
+          << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method) << ", witness hit rate "
+          << (total.narrowQueries > 0
+                  ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
+                  : 0.0)
+          << ", energy " << rigid->energy() << " J\n";
+    }
+    out << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
         << "  steps        " << done << " of " << steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"

@@ -19,6 +19,8 @@ const char* stepCodeName(StepCode code) {
       return "overstretched";
     case StepCode::StepSizeUnderflow:
       return "step-size-underflow";
+    case StepCode::CapacityExceeded:
+      return "capacity-exceeded";
   }
   return "unknown";
 }
@@ -31,8 +33,17 @@ std::string StepStatus::message() const {
       out << "ok";
       break;
     case StepCode::NonFinite:
-      out << "non-finite state: particle " << particle << " has position or velocity " << value
-          << " after the step starting at t = " << time << " s (reduce dt or use a more stable integrator)";
+      if (body >= 0) {
+        out << "non-finite state: rigid body " << body << " has position or velocity " << value
+            << " after the step starting at t = " << time << " s (reduce dt)";
+      } else {
+        out << "non-finite state: particle " << particle << " has position or velocity " << value
+            << " after the step starting at t = " << time << " s (reduce dt or use a more stable integrator)";
+      }
+      break;
+    case StepCode::CapacityExceeded:
+      out << "the rigid-body pair buffer (capacity " << value << ") is full in the step starting at t = " << time
+          << " s: raise RigidOptions::maxPairs";
       break;
     case StepCode::Overstretched:
       out << "overstretched spring " << spring << " (particle " << particle << "): length is " << value

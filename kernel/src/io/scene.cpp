@@ -16,12 +16,14 @@
 #include <sstream>
 
 #include "builtin_meshes.hpp"
+#include "json_reader.hpp"
 #include "weft/io/mesh_import.hpp"
 #include "weft/scene/builtin_scenes.hpp"
+#include "weft/scene/rigid_scenes.hpp"
 
 namespace weft {
 
-using Json = nlohmann::json;
+using namespace io_detail;  // Json, Reader, fmt, shortDump (json_reader.hpp)
 
 const char* bodyKindName(BodyKind kind) {
   switch (kind) {
@@ -44,7 +46,6 @@ constexpr std::size_t kMaxSceneFileBytes = std::size_t(16) << 20;   // a scene i
 // body's particles), those of larger bodies when the scene is assembled: so that reading
 // a short file stays fast however large the bodies it asks for.
 constexpr Index kMaxScannedParticles = Index(1) << 20;
-constexpr std::size_t kMaxJsonDepth = 32;  // a scene nests 7 levels deep
 
 /// ceil(duration / dt) (a hair less, so that 1 / 0.1 is 10 steps), at least 1, as a double:
 /// no overflow whatever the values.
@@ -67,267 +68,6 @@ std::int64_t sceneStepCount(const SceneSpec& scene) {
 // ---------------------------------------------------------------------------------------
 
 namespace {
-
-/// A value for a message: compact JSON, ASCII only (so cutting it never splits a
-/// character), at most 60 characters. Integers appear as written in the file, other
-/// numbers as nlohmann prints them (-3.0, 1e-05).
-std::string shortDump(const Json& j) {
-  std::string s = j.dump(-1, ' ', /*ensure_ascii=*/true);
-  if (s.size() > 60) s = s.substr(0, 57) + "...";
-  return s;
-}
-
-/// The shortest decimal that reads back as v: "0.1", "1e-09", "200".
-std::string fmt(double v) {
-  char buffer[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
-    if (std::strtod(buffer, nullptr) == v) break;
-  }
-  return buffer;
-}
-
-std::string fmt(const Vec3d& v) {
-  std::string s = "[";  // (appended, not "[" + ...: GCC 12 warns about that falsely, -Wrestrict)
-  s += fmt(v.x);
-  s += ", ";
-  s += fmt(v.y);
-  s += ", ";
-  s += fmt(v.z);
-  s += "]";
-  return s;
-}
-
-/// A key as it appears in a field path: as is when it is a plain name, else quoted and
-/// escaped (a key may hold anything, newlines included).
-std::string displayKey(const std::string& key) {
-  const bool plain = !key.empty() && key.size() <= 40 && std::all_of(key.begin(), key.end(), [](unsigned char c) {
-    return std::isalnum(c) || c == '_' || c == '-';
-  });
-  return plain ? key : shortDump(Json(key));
-}
-
-const char* typeName(const Json& j) { return j.type_name(); }
-
-/// Follows nlohmann's parser (as its parse callback) so that a syntax error can name the
-/// field it happened in (the parser itself gives only a line and column, or for a number
-/// that overflows, like 1e999, nothing). Also rejects what the DOM would hide or what
-/// later code should not have to survive: a key given twice in one object (nlohmann keeps
-/// the last silently) and nesting deeper than kMaxJsonDepth.
-class JsonPathTracker {
- public:
-  explicit JsonPathTracker(const std::string& source) : source_(source) {}
-
-  bool operator()(int /*depth*/, Json::parse_event_t event, Json& parsed) {
-    switch (event) {
-      case Json::parse_event_t::object_start:
-      case Json::parse_event_t::array_start:
-        if (stack_.size() >= kMaxJsonDepth)
-          throw SceneError(source_ + ": " + where() + ": nesting deeper than " + std::to_string(kMaxJsonDepth) +
-                           " levels: not a scene");
-        stack_.push_back({event == Json::parse_event_t::array_start, 0, {}, false, {}});
-        break;
-      case Json::parse_event_t::key: {
-        Frame& f = stack_.back();
-        f.key = parsed.get<std::string>();
-        f.keyed = true;
-        if (!f.keys.insert(f.key).second)
-          throw SceneError(source_ + ": " + where() + ": duplicate key: each key may appear once in an object");
-        break;
-      }
-      case Json::parse_event_t::value:
-        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
-        break;
-      case Json::parse_event_t::object_end:
-      case Json::parse_event_t::array_end:
-        stack_.pop_back();
-        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
-        break;
-    }
-    return true;
-  }
-
-  /// Path of the value being read (or just read): "bodies[0].materials.bend".
-  std::string path() const {
-    std::string p;
-    for (const Frame& f : stack_) {
-      if (f.array)
-        p += "[" + std::to_string(f.index) + "]";
-      else if (f.keyed)
-        p += (p.empty() ? "" : ".") + displayKey(f.key);
-      else
-        break;
-    }
-    return p;
-  }
-
- private:
-  struct Frame {
-    bool array;
-    std::size_t index;  // arrays: the element being read
-    std::string key;    // objects: the member being read
-    bool keyed;
-    std::set<std::string> keys;
-  };
-  std::string where() const {
-    const std::string p = path();
-    return p.empty() ? "(top level)" : p;
-  }
-  const std::string& source_;
-  std::vector<Frame> stack_;
-};
-
-/// v / |v| exactly as weft's builders compute it (addRope, addClothGrid); false when |v|
-/// is 0 or not finite.
-bool normalised(const Vec3d& v, Vec3d& out) {
-  const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
-  if (!(std::isfinite(len) && len > 0)) return false;
-  out = {v.x / len, v.y / len, v.z / len};
-  return true;
-}
-
-bool finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-
-class Reader {
- public:
-  explicit Reader(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const std::string& field, const std::string& what) const {
-    throw SceneError(source_ + ": " + (field.empty() ? std::string("(top level)") : field) + ": " + what);
-  }
-
-  /// Checks that `j` is an object whose keys are all in `allowed`.
-  void object(const Json& j, const std::string& field, std::initializer_list<const char*> allowed) const {
-    if (!j.is_object()) fail(field, std::string("must be an object, got ") + typeName(j) + " " + shortDump(j));
-    std::set<std::string> known(allowed.begin(), allowed.end());
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      if (known.count(it.key())) continue;
-      std::string list;
-      for (const char* k : allowed) list += (list.empty() ? "" : ", ") + std::string(k);
-      fail(join(field, displayKey(it.key())), "unknown key; allowed keys here: " + list);
-    }
-  }
-
-  static std::string join(const std::string& field, const std::string& key) {
-    return field.empty() ? key : field + "." + key;
-  }
-
-  double number(const Json& j, const std::string& field) const {
-    if (!j.is_number()) fail(field, std::string("must be a number, got ") + typeName(j) + " " + shortDump(j));
-    const double v = j.get<double>();
-    if (!std::isfinite(v)) fail(field, "must be finite, got " + shortDump(j));
-    return v;
-  }
-  double number(const Json& parent, const std::string& field, const char* key, double fallback, double low,
-                bool lowInclusive, const char* unit) const {
-    if (!parent.contains(key)) return fallback;
-    const std::string f = join(field, key);
-    const double v = number(parent[key], f);
-    if (lowInclusive ? !(v >= low) : !(v > low))
-      fail(f, std::string("must be ") + (lowInclusive ? ">= " : "> ") + fmt(low) + unit + ", got " +
-                  shortDump(parent[key]));
-    return v;
-  }
-  double anyNumber(const Json& parent, const std::string& field, const char* key, double fallback) const {
-    return parent.contains(key) ? number(parent[key], join(field, key)) : fallback;
-  }
-  std::int64_t integer(const Json& parent, const std::string& field, const char* key, std::int64_t fallback,
-                       std::int64_t low, std::int64_t high) const {
-    if (!parent.contains(key)) return fallback;
-    const Json& j = parent[key];
-    const std::string f = join(field, key);
-    if (!j.is_number_integer()) fail(f, std::string("must be an integer, got ") + typeName(j) + " " + shortDump(j));
-    const std::string range = "must be in [" + std::to_string(low) + ", " + std::to_string(high) + "], got ";
-    if (j.is_number_unsigned() && j.get<std::uint64_t>() > static_cast<std::uint64_t>(high))
-      fail(f, range + shortDump(j));
-    const std::int64_t v = j.get<std::int64_t>();
-    if (v < low || v > high) fail(f, range + shortDump(j));
-    return v;
-  }
-  bool boolean(const Json& parent, const std::string& field, const char* key, bool fallback) const {
-    if (!parent.contains(key)) return fallback;
-    const Json& j = parent[key];
-    if (!j.is_boolean())
-      fail(join(field, key), std::string("must be true or false, got ") + typeName(j) + " " + shortDump(j));
-    return j.get<bool>();
-  }
-  std::string string(const Json& parent, const std::string& field, const char* key, const std::string& fallback) const {
-    if (!parent.contains(key)) return fallback;
-    const Json& j = parent[key];
-    if (!j.is_string())
-      fail(join(field, key), std::string("must be a string, got ") + typeName(j) + " " + shortDump(j));
-    return j.get<std::string>();
-  }
-  /// A file or directory name: a non-empty string without NUL characters.
-  std::string pathString(const Json& parent, const std::string& field, const char* key) const {
-    const std::string v = string(parent, field, key, "");
-    if (v.empty()) fail(join(field, key), "must not be empty");
-    if (v.find('\0') != std::string::npos)
-      fail(join(field, key), "must not contain a NUL character, got " + shortDump(parent[key]));
-    return v;
-  }
-  std::string choice(const Json& parent, const std::string& field, const char* key, const std::string& fallback,
-                     std::initializer_list<const char*> allowed) const {
-    const std::string v = string(parent, field, key, fallback);
-    for (const char* a : allowed)
-      if (v == a) return v;
-    std::string list;
-    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    fail(join(field, key), "must be one of " + list + "; got " + shortDump(Json(v)));
-  }
-  Vec3d vector(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
-    if (!parent.contains(key)) return fallback;
-    const Json& j = parent[key];
-    const std::string f = join(field, key);
-    if (!j.is_array() || j.size() != 3)
-      fail(f, std::string("must be an array of 3 numbers [x, y, z], got ") + typeName(j) + " " + shortDump(j));
-    return {number(j[0], f + "[0]"), number(j[1], f + "[1]"), number(j[2], f + "[2]")};
-  }
-  /// A direction: a vector of finite, non-zero length (normalised on use).
-  Vec3d direction(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
-    const Vec3d v = vector(parent, field, key, fallback);
-    Vec3d unit;
-    if (parent.contains(key) && !normalised(v, unit))
-      fail(join(field, key), "must be a direction (a vector of finite non-zero length), got " + shortDump(parent[key]));
-    return v;
-  }
-  SpringMaterial material(const Json& parent, const std::string& field, const char* key,
-                          const SpringMaterial& fallback) const {
-    if (!parent.contains(key)) return fallback;
-    const std::string f = join(field, key);
-    const Json& j = parent[key];
-    object(j, f, {"stiffness", "damping"});
-    SpringMaterial m = fallback;
-    m.stiffness = number(j, f, "stiffness", m.stiffness, 0, true, " N/m");
-    m.damping = number(j, f, "damping", m.damping, 0, true, " N s/m");
-    return m;
-  }
-
- private:
-  std::string source_;
-};
-
-KinematicPath readPath(const Reader& r, const Json& j, const std::string& f) {
-  r.object(j, f, {"velocity", "angular_velocity", "axis", "center", "start", "end"});
-  KinematicPath p;
-  p.velocity = r.vector(j, f, "velocity", p.velocity);
-  p.angularVelocity = r.anyNumber(j, f, "angular_velocity", 0);
-  p.axis = r.vector(j, f, "axis", p.axis);
-  p.center = r.vector(j, f, "center", p.center);
-  p.startTime = r.number(j, f, "start", 0, 0, true, " s");
-  if (j.contains("end")) {
-    p.endTime = r.number(j["end"], Reader::join(f, "end"));
-    if (!(p.endTime >= p.startTime))
-      r.fail(Reader::join(f, "end"), "must be >= start (" + fmt(p.startTime) + " s), got " + shortDump(j["end"]));
-  }
-  // The simulation normalises the axis: its length must be finite and non-zero (an
-  // infinite one would normalise to 0 and shrink the pinned set instead of turning it).
-  Vec3d unit;
-  if (p.angularVelocity != 0 && !normalised(p.axis, unit))
-    r.fail(Reader::join(f, "axis"),
-           "must be a vector of finite non-zero length when angular_velocity is not 0, got " + fmt(p.axis));
-  return p;
-}
 
 /// Body-local particle positions at the start, for checking pins while reading: the exact
 /// expressions of addRope / addClothGrid, so a box selects here what it selects when the
@@ -811,12 +551,15 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   const Reader r(source);
   r.object(root, "",
            {"name", "bodies", "integrator", "dt", "steps", "duration", "precision", "threads", "force_strategy",
-            "gravity", "effects", "collision", "integration", "stability", "output"});
+            "gravity", "effects", "collision", "rigid_bodies", "integration", "stability", "output"});
   SceneSpec scene;
   scene.name = r.string(root, "", "name", "scene");
-  if (!root.contains("bodies")) r.fail("bodies", "is required: a non-empty array of bodies");
-  const Json& bodies = root["bodies"];
-  if (!bodies.is_array() || bodies.empty())
+  // Cloth and ropes (`bodies`), rigid bodies (`rigid_bodies`), or both.
+  if (!root.contains("bodies") && !root.contains("rigid_bodies"))
+    r.fail("bodies", "is required (or rigid_bodies): a non-empty array of bodies");
+  static const Json kNoBodies = Json::array();
+  const Json& bodies = root.contains("bodies") ? root["bodies"] : kNoBodies;
+  if (root.contains("bodies") && (!bodies.is_array() || bodies.empty()))
     r.fail("bodies", std::string("must be a non-empty array, got ") + typeName(bodies) + " " + shortDump(bodies));
   std::int64_t particles = 0;
   for (size_t k = 0; k < bodies.size(); ++k) {
@@ -859,6 +602,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   if (root.contains("effects")) o.effects = readEffects(r, root["effects"], "effects");
   if (root.contains("collision"))
     readCollision(r, root["collision"], "collision", baseDirectory, o.collision, scene.meshObstacles);
+  if (root.contains("rigid_bodies")) o.rigid = readRigidBodies(r, root["rigid_bodies"], "rigid_bodies");
   if (root.contains("integration")) {
     const Json& j = root["integration"];
     const std::string f = "integration";
@@ -919,13 +663,28 @@ SceneSpec readSceneFile(const std::string& path) {
 // ---------------------------------------------------------------------------------------
 
 std::vector<std::string> builtinSceneNames() {
-  return {"flag", "rope", "flag-wind", "hanging-cloth", "drape", "drape-mesh", "rope-on-pegs", "fast-ball"};
+  return {"flag",      "rope",          "flag-wind", "hanging-cloth", "drape",  "drape-mesh", "rope-on-pegs",
+          "fast-ball", "ball-on-brick", "stack",     "pile",          "bullet", "slope",      "hammock"};
 }
 
 SceneSpec builtinSceneSpec(const std::string& name, Index size) {
   SceneSpec scene;
   scene.name = name;
   scene.steps = 2000;
+  // Rigid bodies only (weft/scene/rigid_scenes.hpp), 1/60 s steps: 10 s, the pile 5 s,
+  // the bullet 0.5 s. --size is the number of boxes (stack) or bodies (pile).
+  const auto rigidOnly = [&](RigidOptions rigid, double seconds) {
+    scene.simulation.rigid = std::move(rigid);
+    scene.simulation.dt = rigidSceneTimeStep();
+    scene.steps = static_cast<std::int64_t>(std::lround(seconds / scene.simulation.dt));
+    return scene;
+  };
+  const auto count = [&](Index fallback) { return size > 0 ? size : fallback; };
+  if (name == "ball-on-brick") return rigidOnly(ballOnBrickScene(), 10);
+  if (name == "stack") return rigidOnly(stackScene(count(10)), 10);
+  if (name == "pile") return rigidOnly(pileScene(count(1000)), 5);
+  if (name == "bullet") return rigidOnly(bulletScene(200), 0.5);
+  if (name == "slope") return rigidOnly(slopeScene(30, 0.3), 2);
   BodySpec body;
   if (name == "flag" || name == "flag-wind" || name == "hanging-cloth") {
     const Index n = size > 0 ? size : defaultSceneSize(BuiltinScene::Flag);
@@ -975,6 +734,19 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
       scene.simulation.effects.repulsion.radius = 0.5 * body.grid.spacing;
       scene.simulation.effects.repulsion.stiffness = 200;
     }
+  } else if (name == "hammock") {
+    // A 1 kg ball dropped into a cloth pinned at its four corners (size x size, default 24;
+    // weft/scene/rigid_scenes.hpp): particles and the body push each other; 6 s.
+    const Index n = size > 0 ? size : 24;
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::ClothGrid;
+    body.name = "cloth";
+    body.grid = hammockCloth(n);
+    body.pins.push_back({hammockPins(n), std::nullopt, std::nullopt});
+    scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    scene.steps = static_cast<std::int64_t>(std::ceil(6.0 / scene.simulation.dt));
+    scene.simulation.effects.drag = 0.03;  // a heavy, damped fabric: the ball comes to rest
+    scene.simulation.rigid = hammockBall();
   } else if (name == "rope") {
     const Index n = size > 0 ? size : defaultSceneSize(BuiltinScene::Rope);
     if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
@@ -1061,7 +833,8 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
 
 template <class S>
 AssembledScene<S> assembleScene(const SceneSpec& scene) {
-  if (scene.bodies.empty()) throw SceneError(scene.name + ": bodies: the scene has no bodies");
+  if (scene.bodies.empty() && scene.simulation.rigid.bodies.empty())
+    throw SceneError(scene.name + ": bodies: the scene has no bodies (and no rigid bodies)");
   requireScalarRange<S>(scene.simulation, [&](const std::string& field, const std::string& what) {
     throw SceneError(scene.name + ": " + field + ": " + what);
   });
@@ -1177,6 +950,7 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
   }
   try {
     validateCollision(out.options.collision, "collision");
+    validateRigidOptions(out.options.rigid);
   } catch (const std::exception& e) {
     throw SceneError(scene.name + ": " + e.what());
   }

@@ -112,7 +112,7 @@ template <class S>
 ModelAndState<S> ModelBuilder<S>::build() {
   const Index n = particleCount();
   const Index m = springCount();
-  if (n == 0) throw std::invalid_argument("ModelBuilder::build: the model has no particles");
+  // n == 0 is a model without particles: a scene of rigid bodies only.
 
   // Values must be representable in S (converting an out-of-range double to float is
   // undefined behaviour, and an infinite position is no position).

@@ -22,6 +22,7 @@ const SimulationOptions& validated(const SimulationOptions& o) {
     throw std::invalid_argument("SimulationOptions.gravity must be finite");
   validateEffects(o.effects, "SimulationOptions.effects");
   validateCollision(o.collision, "SimulationOptions.collision");
+  validateRigidOptions(o.rigid);
   if (std::isnan(o.stability.maxStretch))
     throw std::invalid_argument("SimulationOptions.stability.maxStretch must not be NaN");
   return o;
@@ -94,6 +95,15 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
         if (springs.kind[static_cast<size_t>(s)] != SpringClass::Bend) edges.push_back({springs.a[s], springs.b[s]});
     }
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges));
+  }
+  if (!options_.rigid.bodies.empty()) {
+    const Vec3d& g = options_.gravity;
+    rigid_ = std::make_unique<RigidWorld>(options_.rigid, Eigen::Vector3d(g.x, g.y, g.z));
+    if (options_.rigid.particleContacts && model_->particleCount() > 0) {
+      coupling_ = std::make_unique<ParticleBodyContacts<S>>(rigid_->model(), model_->particleCount(),
+                                                            options_.rigid.particleThickness);
+      stepStartX_.resize(model_->particleCount(), 3);
+    }
   }
 }
 
@@ -196,6 +206,42 @@ void Simulation<S>::acceptChunk(double h) {
 template <class S>
 StepStatus Simulation<S>::step() {
   if (!status_.ok()) return status_;
+  if (!rigid_) return stepParticles();
+  // Bodies first: a failure of either part leaves both where they were.
+  StepStatus bodies;
+  const auto start =
+      options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+  executor_->run([&] { bodies = rigid_->step(options_.dt, *executor_); });
+  if (options_.profileEffects)
+    rigidSeconds_ +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() * executor_->threadCount();
+  if (!bodies.ok()) {
+    status_ = bodies;
+    return status_;
+  }
+  if (coupling_) stepStartX_ = state_.x;  // same size: a copy, no allocation
+  const StepStatus particles = stepParticles();
+  if (!particles.ok()) {
+    rigid_->undoStep();
+    return particles;
+  }
+  if (coupling_) {
+    // Particles and bodies push each other (the bodies' reaction acts from the next step).
+    const auto couplingStart =
+        options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+    executor_->run([&] {
+      lastCoupling_ = coupling_->resolve(stepStartX_, state_.x, state_.v, model_->inverseMass(), *rigid_, *executor_);
+    });
+    if (lastCoupling_.contacts > 0) integrator_->reset();  // the state changed after the integrator saw it
+    if (options_.profileEffects)
+      rigidSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - couplingStart).count() *
+                       executor_->threadCount();
+  }
+  return particles;
+}
+
+template <class S>
+StepStatus Simulation<S>::stepParticles() {
   if (contacts_) return stepWithContacts();
   lastWork_ = StepWork{};
   if (advanceChunk(options_.dt)) {
@@ -271,6 +317,7 @@ SceneEffectTimes Simulation<S>::effectTimes() const {
   t.forces = forces_.effectTimes();
   t.kinematicPins = kinematicSeconds_;
   t.collision = collisionSeconds_;
+  t.rigidBodies = rigidSeconds_;
   return t;
 }
 

@@ -36,6 +36,7 @@ enum class StepCode {
   NonFinite,          // a position or velocity is NaN or infinite
   Overstretched,      // a spring exceeds maxStretch x rest length
   StepSizeUnderflow,  // adaptive error control gave up (IntegratorOptions minSubstep / maxSubsteps)
+  CapacityExceeded,   // a buffer sized at construction is full (RigidOptions::maxPairs); `value` is the capacity
 };
 const char* stepCodeName(StepCode code);
 
@@ -43,6 +44,7 @@ struct StepStatus {
   StepCode code = StepCode::Ok;
   Index particle = -1;  // first offending particle (of an overstretched spring: its free end)
   Index spring = -1;    // offending spring (Overstretched)
+  Index body = -1;      // offending rigid body (NonFinite of a body), or -1
   double value = 0;     // the offending value (NonFinite), stretch ratio (Overstretched) or
                         // trial substeps taken (StepSizeUnderflow)
   double time = 0;      // simulated time at the start of the failed step, s

@@ -35,6 +35,8 @@
 #include "weft/integrate/integrator.hpp"
 #include "weft/integrate/stability.hpp"
 #include "weft/model/builder.hpp"
+#include "weft/rigid/particle_coupling.hpp"
+#include "weft/rigid/rigid_world.hpp"
 
 namespace weft {
 
@@ -61,6 +63,7 @@ struct SimulationOptions {
   IntegratorOptions integration;             // tolerances of rk45, CG settings of implicit
   std::vector<KinematicPins> kinematicPins;  // moving pins; none by default, then free
   CollisionOptions collision;                // obstacles; none by default, then free
+  RigidOptions rigid;                        // rigid bodies; none by default, then free
   bool profileEffects = false;               // measure the CPU time of each effect (effectTimes())
 };
 
@@ -70,6 +73,7 @@ struct SceneEffectTimes {
   EffectTimes forces;        // drag, wind, repulsion
   double kinematicPins = 0;  // moving the kinematic pins
   double collision = 0;      // detection, response and rollback decisions (wall time x threads)
+  double rigidBodies = 0;    // the rigid bodies' step (wall time x threads)
 };
 
 template <class S>
@@ -111,6 +115,13 @@ class Simulation {
   const CollisionStats& totalCollision() const { return totalCollision_; }
   /// The contact solver (null without obstacles).
   const ContactSolver<S>* contactSolver() const { return contacts_.get(); }
+  /// The rigid bodies, stepped with the particles in the same fixed step (null without
+  /// SimulationOptions::rigid bodies). Always double precision: a few bodies cost little,
+  /// and resting stacks want the digits.
+  const RigidWorld* rigidWorld() const { return rigid_.get(); }
+  RigidWorld* rigidWorld() { return rigid_.get(); }
+  /// Contacts between particles and rigid bodies in the last step (zeros without both).
+  const ParticleBodyStats& lastParticleBodyContacts() const { return lastCoupling_; }
   /// Time spent in each effect (zeros unless SimulationOptions::profileEffects).
   SceneEffectTimes effectTimes() const;
 
@@ -144,6 +155,7 @@ class Simulation {
   std::unique_ptr<ContactSolver<S>> contacts_;
   CollisionStats lastCollision_, totalCollision_;
   double collisionSeconds_ = 0;
+  double rigidSeconds_ = 0;
   /// Integrates the chunk [t, t + h] from the state into (nextX_, nextV_), the kinematic
   /// pins on their path; false (status_ set, state untouched) when the check failed.
   bool advanceChunk(double h);
@@ -154,6 +166,12 @@ class Simulation {
   void acceptChunk(double h);
   /// One step through chunks with rollback (obstacles present).
   StepStatus stepWithContacts();
+  /// The particles' step (without or with obstacles).
+  StepStatus stepParticles();
+  std::unique_ptr<RigidWorld> rigid_;                  // null without rigid bodies
+  std::unique_ptr<ParticleBodyContacts<S>> coupling_;  // null unless particles and bodies meet
+  Vec3Array<S> stepStartX_;                            // (n x 3) positions at the step's start, m (coupling only)
+  ParticleBodyStats lastCoupling_;
 };
 
 extern template class Simulation<float>;

@@ -1,0 +1,298 @@
+// weft/rigid/rigid_world.hpp — rigid bodies beside the particle model: what they are made
+// of (RigidModel, built once), where they are (RigidState) and the step that moves them and
+// makes them collide (RigidWorld).
+//
+// Design note
+// -----------
+// A body is one or more convex pieces (sphere, box, or the convex hull of points; several
+// pieces make a compound, how a concave body is described). Its mass, centre of mass and
+// inertia tensor come from the pieces' exact volume integrals (rigid/mass_properties.hpp)
+// at the body's density; internally a body is tracked by its centre of mass. Static bodies
+// never move; kinematic bodies follow a KinematicPath (their velocity is the chord of the
+// path over the step, so they end each step exactly on it) and push dynamic bodies without
+// being pushed; dynamic bodies obey gravity and contacts.
+//
+// One step of length h (RigidWorld::step), after Catto's sequential impulses as Box2D v3
+// runs them (warm start, solve with bias, integrate, relax without bias, restitution):
+//   1. velocities: v += g h for dynamic bodies; kinematic bodies take their path's chord.
+//   2. broad phase: each piece's world box, swept over the step (the box at the start
+//      united with the box moved by v h, grown by the rotation |w| h r and the speculative
+//      distance: the extruded silhouette of the original design), sort-and-sweep along x
+//      in (min x, index) order, pairs of pieces of different bodies with at least one
+//      dynamic body.
+//   3. narrow phase (parallel over pairs, each writing its own slot): a contact manifold
+//      of up to 4 points per pair through rigid/narrow_phase.hpp (exact, OFG or witness)
+//      with a speculative margin of speculativeDistance plus the pair's relative motion
+//      bound over the step, so a fast body meets what lies in its path within the step
+//      (no tunnelling without sub-stepping or rollback).
+//   4. contact constraints, serial in pair order: normal, two tangents, effective masses;
+//      accumulated impulses of the previous step's point with the same pair and feature
+//      id are applied first (warm starting). A point with separation s > 0 lets the bodies
+//      approach by s within the step (speculative contact); a penetrating point is pushed
+//      out at penetrationRate x (depth - linearSlop) / h at most maxPushVelocity.
+//   5. velocityIterations passes of normal then friction impulses (Coulomb cone, static
+//      coefficient while the point's tangential speed is below staticSpeed, kinetic above),
+//      positions integrated (x += v h; rotation with the body's world angular momentum
+//      held fixed, RK4 on the quaternion, so a free body keeps L exactly and shows the
+//      gyroscopic precession and the tennis-racket flip), positionIterations passes without
+//      the push-out bias (it must not stay in the velocities), then restitution for points
+//      that closed faster than restitutionThreshold.
+// The solver is serial and the parallel passes write disjoint slots, so the result is
+// bitwise the same for any thread count. Every buffer is sized at construction; step()
+// never allocates and never throws: a full pair buffer or a non-finite body is reported in
+// the returned status (the state restored to the start of the step).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "weft/core/kinematic_path.hpp"
+#include "weft/core/parallel.hpp"
+#include "weft/integrate/stability.hpp"
+#include "weft/rigid/convex_hull.hpp"
+#include "weft/rigid/mass_properties.hpp"
+#include "weft/rigid/narrow_phase.hpp"
+
+namespace weft {
+
+enum class BodyMotion { Static, Kinematic, Dynamic };
+const char* bodyMotionName(BodyMotion motion);
+
+/// One convex piece of a body, placed in the body's frame.
+struct RigidShapeDesc {
+  enum class Kind { Sphere, Box, Hull };
+  Kind kind = Kind::Box;
+  double radius = 0.5;                                           // Sphere, m
+  Eigen::Vector3d halfExtents{0.5, 0.5, 0.5};                    // Box, m
+  std::vector<Eigen::Vector3d> points;                           // Hull: its convex hull is the piece, m
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();              // piece origin in the body frame, m
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // piece axes in the body frame
+};
+
+struct RigidBodyDesc {
+  std::string name;
+  BodyMotion motion = BodyMotion::Dynamic;
+  std::vector<RigidShapeDesc> shapes;  // >= 1 piece
+  double density = 1000;               // kg/m^3 (> 0)
+  double mass = 0;                     // > 0: the body's mass (inertia scaled to match); 0: from density
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // body frame axes, world
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();               // of the centre of mass, m/s
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();        // world, rad/s
+  double staticFriction = 0.6;   // >= 0; a pair uses the geometric mean of its bodies' coefficients
+  double kineticFriction = 0.5;  // in [0, staticFriction]
+  double restitution = 0;        // in [0, 1]; a pair uses the larger
+  KinematicPath path;            // Kinematic: how it moves (its rotation about path.center)
+};
+
+struct RigidOptions {
+  std::vector<RigidBodyDesc> bodies;  // none: no rigid bodies, nothing constructed, nothing paid
+  NarrowPhaseOptions narrowPhase;
+  int substeps = 4;                   // >= 1: solver substeps of a step (one collision detection)
+  int velocityIterations = 8;         // >= 1, per substep
+  int positionIterations = 1;         // >= 0, per substep: passes of the penetration recovery (split impulses)
+  double speculativeDistance = 0.01;  // m (>= 0): contacts are made this far before touching
+  bool continuous = true;             // grow each pair's margin by its motion over the step
+  double linearSlop = 0.005;          // m: penetration left alone (>= 0)
+  double penetrationRate = 0.2;       // share of the penetration removed per step, (0, 1]
+  double maxPushVelocity = 3;         // m/s (> 0)
+  double restitutionThreshold = 0.5;  // m/s: slower impacts do not bounce
+  double staticSpeed = 0.01;          // m/s: tangential speed under which static friction applies
+  Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64
+  // With particles in the same Simulation (rigid/particle_coupling.hpp):
+  bool particleContacts = true;      // particles and bodies push each other
+  double particleThickness = 0.005;  // particle radius against bodies, m (> 0)
+};
+
+/// Validates the options (every body and field); throws std::invalid_argument naming the
+/// field (e.g. "rigid.bodies[2].shapes[0].halfExtents.y") and the value.
+void validateRigidOptions(const RigidOptions& options);
+
+/// What the bodies are made of: built once, read by every step.
+struct RigidPiece {
+  Index body = 0;
+  RigidShapeDesc::Kind kind = RigidShapeDesc::Kind::Hull;  // Sphere or Hull (a box is a hull)
+  double radius = 0;                                       // Sphere, m
+  Index hull = -1;                                         // Hull: index into RigidModel::hulls
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();        // piece origin relative to the centre of mass, body axes, m
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // piece axes in body axes
+  double boundingRadius = 0;                               // about `centre`, m
+  Eigen::Vector3d centre =
+      Eigen::Vector3d::Zero();  // bounding sphere centre, body frame relative to the centre of mass, m
+  Eigen::Vector3d localMin = Eigen::Vector3d::Zero();  // the piece's box in its own frame, m
+  Eigen::Vector3d localMax = Eigen::Vector3d::Zero();
+};
+
+struct RigidModel {
+  Index bodyCount() const { return static_cast<Index>(motion.size()); }
+  Index pieceCount() const { return static_cast<Index>(pieces.size()); }
+  std::vector<std::string> names;
+  std::vector<BodyMotion> motion;
+  std::vector<double> inverseMass;              // 1/kg (0: static or kinematic)
+  std::vector<double> mass;                     // kg
+  std::vector<Eigen::Matrix3d> inertia;         // about the centre of mass, body axes, kg m^2
+  std::vector<Eigen::Matrix3d> inverseInertia;  // body axes (0: static or kinematic)
+  std::vector<Eigen::Vector3d> centreOfMass;    // in the body frame (from the given origin), m
+  std::vector<double> staticFriction, kineticFriction, restitution;
+  std::vector<KinematicPath> paths;  // per body (used by kinematic ones)
+  std::vector<Index> firstPiece;     // body b's pieces are [firstPiece[b], firstPiece[b + 1])
+  std::vector<RigidPiece> pieces;
+  std::vector<ConvexHull> hulls;
+};
+
+/// Builds the model (hulls, mass properties); throws std::invalid_argument for bad bodies.
+std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDesc>& bodies);
+
+/// Where the bodies are: centre-of-mass positions and velocities, orientations.
+struct RigidState {
+  std::vector<Eigen::Vector3d> x;     // centre of mass, world, m
+  std::vector<Eigen::Quaterniond> q;  // body axes in world (unit)
+  std::vector<Eigen::Vector3d> v;     // m/s
+  std::vector<Eigen::Vector3d> w;     // world angular velocity, rad/s
+  double time = 0;                    // s
+};
+
+/// FNV-1a over the bits of every body's position, orientation and velocities (equal
+/// hashes: bitwise equal states).
+std::uint64_t rigidStateHash(const RigidState& state);
+
+/// The initial state the descriptions give.
+RigidState initialRigidState(const RigidModel& model, const std::vector<RigidBodyDesc>& bodies);
+
+/// Findings of one step (or sums over steps).
+struct RigidStats {
+  std::int64_t candidatePairs = 0;  // broad phase pairs
+  std::int64_t touchingPairs = 0;   // pairs with a manifold
+  std::int64_t contacts = 0;        // manifold points
+  std::int64_t warmStarted = 0;     // of which started from the last step's impulses (same pair and feature)
+  std::int64_t witnessHits = 0;     // narrow phase queries answered by the cached witness
+  std::int64_t narrowQueries = 0;   // hull-hull queries in all
+  double maxPenetration = 0;        // deepest contact at the start of the step's solve, m (>= 0)
+  void add(const RigidStats& s);
+};
+
+class RigidWorld {
+ public:
+  RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initial, const RigidOptions& options,
+             const Eigen::Vector3d& gravity);
+  /// The initial state from options.bodies (which built `model`).
+  RigidWorld(std::shared_ptr<const RigidModel> model, const RigidOptions& options, const Eigen::Vector3d& gravity);
+  /// Builds the model from options.bodies.
+  RigidWorld(const RigidOptions& options, const Eigen::Vector3d& gravity);
+
+  /// Advances by h (s, > 0). On failure (a full pair buffer, a non-finite body) the state
+  /// is restored and the status says why (StepCode::CapacityExceeded / NonFinite with `body`).
+  StepStatus step(double h, const Executor& executor);
+
+  /// Puts the state back where the last step started (the caller's step failed elsewhere).
+  void undoStep() { state_ = backup_; }
+  /// The state at the start of the last step (where the bodies came from).
+  const RigidState& stepStart() const { return backup_; }
+  /// World pose of piece `p` in state `s`.
+  Pose piecePose(Index p, const RigidState& s) const;
+  /// Applies an impulse (N s, world) at a world point to a dynamic body (others ignore it):
+  /// how particles push bodies (rigid/particle_coupling.hpp).
+  void applyImpulse(Index body, const Eigen::Vector3d& impulse, const Eigen::Vector3d& point);
+
+  const RigidModel& model() const { return *model_; }
+  const RigidState& state() const { return state_; }
+  void setState(const RigidState& state);
+  const RigidOptions& options() const { return options_; }
+  const RigidStats& lastStats() const { return last_; }
+  const RigidStats& totalStats() const { return total_; }
+  /// Position (world) of body b's frame origin, as RigidBodyDesc::position names it.
+  Eigen::Vector3d bodyOrigin(Index b) const;
+  /// Kinetic plus gravitational potential energy of the dynamic bodies, J (potential
+  /// relative to height 0 along -gravity).
+  double energy() const;
+  /// World angular momentum of body b about its centre of mass, kg m^2/s.
+  Eigen::Vector3d angularMomentum(Index b) const;
+
+  RigidWorld(const RigidWorld&) = delete;
+  RigidWorld& operator=(const RigidWorld&) = delete;
+
+ private:
+  struct Pair {
+    Index a, b;  // pieces, a < b
+    std::uint64_t key() const { return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b); }
+  };
+  // One contact point as the solver sees it (hot data of the iterations first).
+  struct Constraint {
+    Index bodyA = 0, bodyB = 0;
+    Eigen::Vector3d rA, rB;  // from the centres of mass to the point, m
+    Eigen::Vector3d normal, tangent1, tangent2;
+    double normalMass = 0, tangentMass1 = 0, tangentMass2 = 0;
+    double separation = 0;          // m, now (advanced substep by substep)
+    double previousSeparation = 0;  // m, at the start of the previous substep (impact or resting?)
+    double normalImpulse = 0, tangentImpulse1 = 0, tangentImpulse2 = 0;  // accumulated, N s
+    double pushImpulse = 0;  // accumulated split impulse of the penetration recovery (not carried over)
+    double maxNormalImpulse = 0;
+    double friction = 0;  // the coefficient chosen for this step (static or kinetic)
+    double restitution = 0;
+    double approachVelocity = 0;  // relative normal velocity before the solve, m/s
+    std::uint64_t pairKey = 0;
+    std::uint32_t featureId = 0;
+    Eigen::Vector3d anchor;  // the point in body A's frame (warm starting by position when the feature id changed)
+    // Precomputed for the directions k = 0 (normal), 1, 2 (tangents): r x d on each body and
+    // I^-1 (r x d), so an impulse costs no matrix product in the iterations.
+    double inverseMassA = 0, inverseMassB = 0;
+    std::array<Eigen::Vector3d, 3> crossA, crossB, angularA, angularB;
+    const Eigen::Vector3d& direction(int k) const { return k == 0 ? normal : k == 1 ? tangent1 : tangent2; }
+  };
+  std::shared_ptr<const RigidModel> model_;
+  RigidState state_, backup_;
+  RigidOptions options_;
+  Eigen::Vector3d gravity_;
+  RigidStats last_, total_;
+  // Per piece: world pose at the start of the step and swept box.
+  std::vector<Pose> piecePose_;
+  std::vector<Eigen::Vector3d> boxMin_, boxMax_;
+  std::vector<Index> sweepOrder_;
+  // Pairs of this step and of the last (sorted by key), their caches and manifolds.
+  std::vector<Pair> pairs_, lastPairs_;
+  std::vector<PairCache> caches_, lastCaches_;
+  std::vector<ContactManifold> manifolds_;
+  std::vector<double> margins_;
+  std::vector<NarrowPhaseOutcome> outcomes_;
+  std::vector<Constraint> constraints_, lastConstraints_;
+  std::vector<Index> pairFirstConstraint_, lastPairFirstConstraint_;  // per pair, CSR into constraints
+  struct Block {  // one manifold's points, solved together along the normal
+    Index first = 0;
+    int count = 0;
+    Eigen::Matrix4d inverse = Eigen::Matrix4d::Zero();  // of the points' normal coupling (count x count used)
+  };
+  std::vector<Block> blocks_;
+  Index capacityPairs_ = 0;
+  double invStep_ = 0;                     // 1 / substep of the current step
+  double lastSubstep_ = 0;                 // the last step's substep, s (warm starting rescales impulses by the ratio)
+  std::vector<Eigen::Matrix3d> rotation_;  // per body, this step
+  std::vector<Eigen::Vector3d> pushV_, pushW_;    // per body: split-impulse velocities (positions only), m/s, rad/s
+  std::vector<Eigen::Matrix3d> invInertiaWorld_;  // per body, this step
+  std::vector<Eigen::Vector3d> kinematicX0_;      // per body: centre of mass at time 0 (kinematic bodies)
+  std::vector<Eigen::Quaterniond> kinematicQ0_;
+  std::vector<Eigen::Vector3d> targetX_;  // per body: kinematic position at the end of the step
+  std::vector<Eigen::Quaterniond> targetQ_;
+  StepStatus fail(StepCode code, Index body, double value);
+  void broadPhase(double h, const Executor& executor, bool& overflow, Index& nonFinite);
+  void narrowPhase(double h, const Executor& executor);
+  void buildConstraints(double h);
+  void warmStart();
+  void solveVelocities(bool backward);
+  /// Relative velocity of the point along direction k (0 normal, 1 and 2 tangents).
+  double relativeVelocity(const Constraint& c, int k) const;
+  /// Applies lambda along direction k (B gets +, A gets -).
+  void apply(const Constraint& c, int k, double lambda);
+  void solveFriction(Constraint& c);
+  void solveNormal(Constraint& c);
+  void advanceSeparations(double hs);
+  void solvePositions(double h);
+  void integratePositions(double h, bool last);
+  void applyRestitution();
+};
+
+}  // namespace weft

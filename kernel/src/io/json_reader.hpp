@@ -1,0 +1,294 @@
+// json_reader.hpp — the strict JSON walker of weft::io's scene files (private to weft::io).
+//
+// Reader knows the path of every value it reads and rejects unknown keys, wrong types,
+// non-finite numbers and out-of-range values with the source, the field path and the
+// value in the message; JsonPathTracker follows nlohmann's parser to name the field of a
+// syntax error and rejects duplicate keys and deep nesting.
+#pragma once
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <initializer_list>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "weft/io/scene.hpp"
+
+namespace weft::io_detail {
+
+using Json = nlohmann::json;
+
+constexpr std::size_t kMaxJsonDepth = 32;  // a scene nests 7 levels deep
+
+/// A value for a message: compact JSON, ASCII only (so cutting it never splits a
+/// character), at most 60 characters. Integers appear as written in the file, other
+/// numbers as nlohmann prints them (-3.0, 1e-05).
+inline std::string shortDump(const Json& j) {
+  std::string s = j.dump(-1, ' ', /*ensure_ascii=*/true);
+  if (s.size() > 60) s = s.substr(0, 57) + "...";
+  return s;
+}
+
+/// The shortest decimal that reads back as v: "0.1", "1e-09", "200".
+inline std::string fmt(double v) {
+  char buffer[32];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
+    if (std::strtod(buffer, nullptr) == v) break;
+  }
+  return buffer;
+}
+
+inline std::string fmt(const Vec3d& v) {
+  std::string s = "[";  // (appended, not "[" + ...: GCC 12 warns about that falsely, -Wrestrict)
+  s += fmt(v.x);
+  s += ", ";
+  s += fmt(v.y);
+  s += ", ";
+  s += fmt(v.z);
+  s += "]";
+  return s;
+}
+
+/// A key as it appears in a field path: as is when it is a plain name, else quoted and
+/// escaped (a key may hold anything, newlines included).
+inline std::string displayKey(const std::string& key) {
+  const bool plain = !key.empty() && key.size() <= 40 && std::all_of(key.begin(), key.end(), [](unsigned char c) {
+    return std::isalnum(c) || c == '_' || c == '-';
+  });
+  return plain ? key : shortDump(Json(key));
+}
+
+inline const char* typeName(const Json& j) { return j.type_name(); }
+
+/// Follows nlohmann's parser (as its parse callback) so that a syntax error can name the
+/// field it happened in (the parser itself gives only a line and column, or for a number
+/// that overflows, like 1e999, nothing). Also rejects what the DOM would hide or what
+/// later code should not have to survive: a key given twice in one object (nlohmann keeps
+/// the last silently) and nesting deeper than kMaxJsonDepth.
+class JsonPathTracker {
+ public:
+  explicit JsonPathTracker(const std::string& source) : source_(source) {}
+
+  bool operator()(int /*depth*/, Json::parse_event_t event, Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+      case Json::parse_event_t::array_start:
+        if (stack_.size() >= kMaxJsonDepth)
+          throw SceneError(source_ + ": " + where() + ": nesting deeper than " + std::to_string(kMaxJsonDepth) +
+                           " levels: not a scene");
+        stack_.push_back({event == Json::parse_event_t::array_start, 0, {}, false, {}});
+        break;
+      case Json::parse_event_t::key: {
+        Frame& f = stack_.back();
+        f.key = parsed.get<std::string>();
+        f.keyed = true;
+        if (!f.keys.insert(f.key).second)
+          throw SceneError(source_ + ": " + where() + ": duplicate key: each key may appear once in an object");
+        break;
+      }
+      case Json::parse_event_t::value:
+        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        stack_.pop_back();
+        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+        break;
+    }
+    return true;
+  }
+
+  /// Path of the value being read (or just read): "bodies[0].materials.bend".
+  std::string path() const {
+    std::string p;
+    for (const Frame& f : stack_) {
+      if (f.array)
+        p += "[" + std::to_string(f.index) + "]";
+      else if (f.keyed)
+        p += (p.empty() ? "" : ".") + displayKey(f.key);
+      else
+        break;
+    }
+    return p;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    std::size_t index;  // arrays: the element being read
+    std::string key;    // objects: the member being read
+    bool keyed;
+    std::set<std::string> keys;
+  };
+  std::string where() const {
+    const std::string p = path();
+    return p.empty() ? "(top level)" : p;
+  }
+  const std::string& source_;
+  std::vector<Frame> stack_;
+};
+
+/// v / |v| exactly as weft's builders compute it (addRope, addClothGrid); false when |v|
+/// is 0 or not finite.
+inline bool normalised(const Vec3d& v, Vec3d& out) {
+  const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+  if (!(std::isfinite(len) && len > 0)) return false;
+  out = {v.x / len, v.y / len, v.z / len};
+  return true;
+}
+
+inline bool finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+class Reader {
+ public:
+  explicit Reader(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const std::string& field, const std::string& what) const {
+    throw SceneError(source_ + ": " + (field.empty() ? std::string("(top level)") : field) + ": " + what);
+  }
+
+  /// Checks that `j` is an object whose keys are all in `allowed`.
+  void object(const Json& j, const std::string& field, std::initializer_list<const char*> allowed) const {
+    if (!j.is_object()) fail(field, std::string("must be an object, got ") + typeName(j) + " " + shortDump(j));
+    std::set<std::string> known(allowed.begin(), allowed.end());
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      if (known.count(it.key())) continue;
+      std::string list;
+      for (const char* k : allowed) list += (list.empty() ? "" : ", ") + std::string(k);
+      fail(join(field, displayKey(it.key())), "unknown key; allowed keys here: " + list);
+    }
+  }
+
+  static std::string join(const std::string& field, const std::string& key) {
+    return field.empty() ? key : field + "." + key;
+  }
+
+  double number(const Json& j, const std::string& field) const {
+    if (!j.is_number()) fail(field, std::string("must be a number, got ") + typeName(j) + " " + shortDump(j));
+    const double v = j.get<double>();
+    if (!std::isfinite(v)) fail(field, "must be finite, got " + shortDump(j));
+    return v;
+  }
+  double number(const Json& parent, const std::string& field, const char* key, double fallback, double low,
+                bool lowInclusive, const char* unit) const {
+    if (!parent.contains(key)) return fallback;
+    const std::string f = join(field, key);
+    const double v = number(parent[key], f);
+    if (lowInclusive ? !(v >= low) : !(v > low))
+      fail(f, std::string("must be ") + (lowInclusive ? ">= " : "> ") + fmt(low) + unit + ", got " +
+                  shortDump(parent[key]));
+    return v;
+  }
+  double anyNumber(const Json& parent, const std::string& field, const char* key, double fallback) const {
+    return parent.contains(key) ? number(parent[key], join(field, key)) : fallback;
+  }
+  std::int64_t integer(const Json& parent, const std::string& field, const char* key, std::int64_t fallback,
+                       std::int64_t low, std::int64_t high) const {
+    if (!parent.contains(key)) return fallback;
+    const Json& j = parent[key];
+    const std::string f = join(field, key);
+    if (!j.is_number_integer()) fail(f, std::string("must be an integer, got ") + typeName(j) + " " + shortDump(j));
+    const std::string range = "must be in [" + std::to_string(low) + ", " + std::to_string(high) + "], got ";
+    if (j.is_number_unsigned() && j.get<std::uint64_t>() > static_cast<std::uint64_t>(high))
+      fail(f, range + shortDump(j));
+    const std::int64_t v = j.get<std::int64_t>();
+    if (v < low || v > high) fail(f, range + shortDump(j));
+    return v;
+  }
+  bool boolean(const Json& parent, const std::string& field, const char* key, bool fallback) const {
+    if (!parent.contains(key)) return fallback;
+    const Json& j = parent[key];
+    if (!j.is_boolean())
+      fail(join(field, key), std::string("must be true or false, got ") + typeName(j) + " " + shortDump(j));
+    return j.get<bool>();
+  }
+  std::string string(const Json& parent, const std::string& field, const char* key, const std::string& fallback) const {
+    if (!parent.contains(key)) return fallback;
+    const Json& j = parent[key];
+    if (!j.is_string())
+      fail(join(field, key), std::string("must be a string, got ") + typeName(j) + " " + shortDump(j));
+    return j.get<std::string>();
+  }
+  /// A file or directory name: a non-empty string without NUL characters.
+  std::string pathString(const Json& parent, const std::string& field, const char* key) const {
+    const std::string v = string(parent, field, key, "");
+    if (v.empty()) fail(join(field, key), "must not be empty");
+    if (v.find('\0') != std::string::npos)
+      fail(join(field, key), "must not contain a NUL character, got " + shortDump(parent[key]));
+    return v;
+  }
+  std::string choice(const Json& parent, const std::string& field, const char* key, const std::string& fallback,
+                     std::initializer_list<const char*> allowed) const {
+    const std::string v = string(parent, field, key, fallback);
+    for (const char* a : allowed)
+      if (v == a) return v;
+    std::string list;
+    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+    fail(join(field, key), "must be one of " + list + "; got " + shortDump(Json(v)));
+  }
+  Vec3d vector(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
+    if (!parent.contains(key)) return fallback;
+    const Json& j = parent[key];
+    const std::string f = join(field, key);
+    if (!j.is_array() || j.size() != 3)
+      fail(f, std::string("must be an array of 3 numbers [x, y, z], got ") + typeName(j) + " " + shortDump(j));
+    return {number(j[0], f + "[0]"), number(j[1], f + "[1]"), number(j[2], f + "[2]")};
+  }
+  /// A direction: a vector of finite, non-zero length (normalised on use).
+  Vec3d direction(const Json& parent, const std::string& field, const char* key, const Vec3d& fallback) const {
+    const Vec3d v = vector(parent, field, key, fallback);
+    Vec3d unit;
+    if (parent.contains(key) && !normalised(v, unit))
+      fail(join(field, key), "must be a direction (a vector of finite non-zero length), got " + shortDump(parent[key]));
+    return v;
+  }
+  SpringMaterial material(const Json& parent, const std::string& field, const char* key,
+                          const SpringMaterial& fallback) const {
+    if (!parent.contains(key)) return fallback;
+    const std::string f = join(field, key);
+    const Json& j = parent[key];
+    object(j, f, {"stiffness", "damping"});
+    SpringMaterial m = fallback;
+    m.stiffness = number(j, f, "stiffness", m.stiffness, 0, true, " N/m");
+    m.damping = number(j, f, "damping", m.damping, 0, true, " N s/m");
+    return m;
+  }
+
+ private:
+  std::string source_;
+};
+
+/// A kinematic path: {velocity, angular_velocity, axis, center, start, end}.
+inline KinematicPath readPath(const Reader& r, const Json& j, const std::string& f) {
+  r.object(j, f, {"velocity", "angular_velocity", "axis", "center", "start", "end"});
+  KinematicPath p;
+  p.velocity = r.vector(j, f, "velocity", p.velocity);
+  p.angularVelocity = r.anyNumber(j, f, "angular_velocity", 0);
+  p.axis = r.vector(j, f, "axis", p.axis);
+  p.center = r.vector(j, f, "center", p.center);
+  p.startTime = r.number(j, f, "start", 0, 0, true, " s");
+  if (j.contains("end")) {
+    p.endTime = r.number(j["end"], Reader::join(f, "end"));
+    if (!(p.endTime >= p.startTime))
+      r.fail(Reader::join(f, "end"), "must be >= start (" + fmt(p.startTime) + " s), got " + shortDump(j["end"]));
+  }
+  // The simulation normalises the axis: its length must be finite and non-zero (an
+  // infinite one would normalise to 0 and shrink the pinned set instead of turning it).
+  Vec3d unit;
+  if (p.angularVelocity != 0 && !normalised(p.axis, unit))
+    r.fail(Reader::join(f, "axis"),
+           "must be a vector of finite non-zero length when angular_velocity is not 0, got " + fmt(p.axis));
+  return p;
+}
+
+/// The `rigid_bodies` section (scene_rigid.cpp).
+RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& field);
+
+}  // namespace weft::io_detail

@@ -1,0 +1,155 @@
+// The `rigid_bodies` section of a scene file (docs/scenes.md): solver settings and bodies
+// made of convex pieces. Ranges are the kernel's (validateRigidOptions), checked here
+// with the file and field path in the message.
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "json_reader.hpp"
+#include "weft/rigid/rigid_world.hpp"
+
+namespace weft::io_detail {
+
+namespace {
+
+Eigen::Vector3d eigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
+
+/// An orientation: {"axis": [x, y, z], "degrees": a} (a rotation by a about axis).
+Eigen::Quaterniond readRotation(const Reader& r, const Json& parent, const std::string& field, const char* key) {
+  if (!parent.contains(key)) return Eigen::Quaterniond::Identity();
+  const std::string f = Reader::join(field, key);
+  const Json& j = parent[key];
+  r.object(j, f, {"axis", "degrees"});
+  if (!j.contains("axis")) r.fail(Reader::join(f, "axis"), "is required: the rotation axis [x, y, z]");
+  const Vec3d axis = r.direction(j, f, "axis", {0, 1, 0});
+  const double degrees = r.anyNumber(j, f, "degrees", 0);
+  const Eigen::Vector3d a = eigen(axis).normalized();
+  return Eigen::Quaterniond(Eigen::AngleAxisd(degrees * 3.14159265358979323846 / 180, a));
+}
+
+RigidShapeDesc readShape(const Reader& r, const Json& e, const std::string& f) {
+  if (!e.is_object()) r.fail(f, std::string("must be an object, got ") + typeName(e) + " " + shortDump(e));
+  if (!e.contains("type")) r.fail(Reader::join(f, "type"), "is required: box, sphere or hull");
+  const std::string type = r.choice(e, f, "type", "", {"box", "sphere", "hull"});
+  RigidShapeDesc s;
+  if (type == "box") {
+    r.object(e, f, {"type", "half_extents", "offset", "rotation"});
+    if (!e.contains("half_extents")) r.fail(Reader::join(f, "half_extents"), "is required for a box");
+    s.kind = RigidShapeDesc::Kind::Box;
+    s.halfExtents = eigen(r.vector(e, f, "half_extents", {}));
+    if (!(s.halfExtents.minCoeff() > 0))
+      r.fail(Reader::join(f, "half_extents"), "must be > 0 m in every axis, got " + shortDump(e["half_extents"]));
+  } else if (type == "sphere") {
+    r.object(e, f, {"type", "radius", "offset", "rotation"});
+    if (!e.contains("radius")) r.fail(Reader::join(f, "radius"), "is required for a sphere");
+    s.kind = RigidShapeDesc::Kind::Sphere;
+    s.radius = r.number(e, f, "radius", 0, 0, false, " m");
+  } else {
+    r.object(e, f, {"type", "points", "offset", "rotation"});
+    const std::string fp = Reader::join(f, "points");
+    if (!e.contains("points")) r.fail(fp, "is required for a hull: an array of at least 4 points [x, y, z]");
+    const Json& list = e["points"];
+    if (!list.is_array() || list.size() < 4)
+      r.fail(fp, std::string("must be an array of at least 4 points [x, y, z], got ") + typeName(list) + " " +
+                     shortDump(list));
+    if (list.size() > 100000) r.fail(fp, "has more than 100000 points (" + std::to_string(list.size()) + ")");
+    s.kind = RigidShapeDesc::Kind::Hull;
+    for (std::size_t k = 0; k < list.size(); ++k) {
+      const Json& p = list[k];
+      const std::string fk = fp + "[" + std::to_string(k) + "]";
+      if (!p.is_array() || p.size() != 3)
+        r.fail(fk, std::string("must be an array of 3 numbers [x, y, z], got ") + typeName(p) + " " + shortDump(p));
+      s.points.emplace_back(r.number(p[0], fk + "[0]"), r.number(p[1], fk + "[1]"), r.number(p[2], fk + "[2]"));
+    }
+  }
+  s.offset = eigen(r.vector(e, f, "offset", {0, 0, 0}));
+  s.rotation = readRotation(r, e, f, "rotation");
+  return s;
+}
+
+}  // namespace
+
+RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& f) {
+  r.object(j, f,
+           {"bodies", "narrow_phase", "ofg_faces", "substeps", "velocity_iterations", "position_iterations",
+            "speculative_distance", "continuous", "linear_slop", "penetration_rate", "max_push_velocity",
+            "restitution_threshold", "static_speed", "max_pairs", "particle_contacts", "particle_thickness"});
+  RigidOptions o;
+  const std::string method = r.choice(j, f, "narrow_phase", "witness", {"exact", "ofg", "witness"});
+  o.narrowPhase.method = method == "exact" ? NarrowPhaseMethod::Exact
+                         : method == "ofg" ? NarrowPhaseMethod::Ofg
+                                           : NarrowPhaseMethod::Witness;
+  o.narrowPhase.ofgFaces = static_cast<int>(r.integer(j, f, "ofg_faces", o.narrowPhase.ofgFaces, 1, 1024));
+  o.substeps = static_cast<int>(r.integer(j, f, "substeps", o.substeps, 1, 1024));
+  o.velocityIterations = static_cast<int>(r.integer(j, f, "velocity_iterations", o.velocityIterations, 1, 1000));
+  o.positionIterations = static_cast<int>(r.integer(j, f, "position_iterations", o.positionIterations, 0, 1000));
+  o.speculativeDistance = r.number(j, f, "speculative_distance", o.speculativeDistance, 0, true, " m");
+  o.continuous = r.boolean(j, f, "continuous", o.continuous);
+  o.linearSlop = r.number(j, f, "linear_slop", o.linearSlop, 0, true, " m");
+  o.penetrationRate = r.number(j, f, "penetration_rate", o.penetrationRate, 0, false, "");
+  if (o.penetrationRate > 1)
+    r.fail(Reader::join(f, "penetration_rate"), "must be <= 1, got " + shortDump(j["penetration_rate"]));
+  o.maxPushVelocity = r.number(j, f, "max_push_velocity", o.maxPushVelocity, 0, false, " m/s");
+  o.restitutionThreshold = r.number(j, f, "restitution_threshold", o.restitutionThreshold, 0, true, " m/s");
+  o.staticSpeed = r.number(j, f, "static_speed", o.staticSpeed, 0, true, " m/s");
+  o.maxPairs = static_cast<Index>(r.integer(j, f, "max_pairs", 0, 0, Index(1) << 28));
+  o.particleContacts = r.boolean(j, f, "particle_contacts", o.particleContacts);
+  o.particleThickness = r.number(j, f, "particle_thickness", o.particleThickness, 0, false, " m");
+  const std::string fb = Reader::join(f, "bodies");
+  if (!j.contains("bodies")) r.fail(fb, "is required: a non-empty array of rigid bodies");
+  const Json& list = j["bodies"];
+  if (!list.is_array() || list.empty())
+    r.fail(fb, std::string("must be a non-empty array, got ") + typeName(list) + " " + shortDump(list));
+  if (list.size() > 1000000) r.fail(fb, "has more than 10^6 bodies (" + std::to_string(list.size()) + ")");
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const std::string fk = fb + "[" + std::to_string(k) + "]";
+    const Json& e = list[k];
+    r.object(e, fk,
+             {"name", "motion", "shapes", "density", "mass", "position", "orientation", "velocity", "angular_velocity",
+              "static_friction", "kinetic_friction", "restitution", "path"});
+    RigidBodyDesc b;
+    b.name = r.string(e, fk, "name", "body" + std::to_string(k));
+    const std::string motion = r.choice(e, fk, "motion", "dynamic", {"static", "kinematic", "dynamic"});
+    b.motion = motion == "static"      ? BodyMotion::Static
+               : motion == "kinematic" ? BodyMotion::Kinematic
+                                       : BodyMotion::Dynamic;
+    const std::string fs = Reader::join(fk, "shapes");
+    if (!e.contains("shapes")) r.fail(fs, "is required: a non-empty array of convex pieces");
+    const Json& shapes = e["shapes"];
+    if (!shapes.is_array() || shapes.empty())
+      r.fail(fs, std::string("must be a non-empty array, got ") + typeName(shapes) + " " + shortDump(shapes));
+    for (std::size_t s = 0; s < shapes.size(); ++s)
+      b.shapes.push_back(readShape(r, shapes[s], fs + "[" + std::to_string(s) + "]"));
+    b.density = r.number(e, fk, "density", b.density, 0, false, " kg/m^3");
+    b.mass = r.number(e, fk, "mass", 0, 0, true, " kg");
+    b.position = eigen(r.vector(e, fk, "position", {0, 0, 0}));
+    b.orientation = readRotation(r, e, fk, "orientation");
+    b.velocity = eigen(r.vector(e, fk, "velocity", {0, 0, 0}));
+    b.angularVelocity = eigen(r.vector(e, fk, "angular_velocity", {0, 0, 0}));
+    b.staticFriction = r.number(e, fk, "static_friction", b.staticFriction, 0, true, "");
+    b.kineticFriction = r.number(e, fk, "kinetic_friction", std::min(b.kineticFriction, b.staticFriction), 0, true, "");
+    if (b.kineticFriction > b.staticFriction)
+      r.fail(Reader::join(fk, "kinetic_friction"),
+             "must be <= static_friction (" + fmt(b.staticFriction) + "), got " + fmt(b.kineticFriction));
+    b.restitution = r.number(e, fk, "restitution", b.restitution, 0, true, "");
+    if (b.restitution > 1) r.fail(Reader::join(fk, "restitution"), "must be <= 1, got " + shortDump(e["restitution"]));
+    if (e.contains("path")) {
+      if (b.motion != BodyMotion::Kinematic)
+        r.fail(Reader::join(fk, "path"), "is for kinematic bodies only (motion is " + motion + ")");
+      b.path = readPath(r, e["path"], Reader::join(fk, "path"));
+    }
+    o.bodies.push_back(std::move(b));
+  }
+  // Whatever the reader let through, the kernel's own rules (and hull building) decide.
+  try {
+    validateRigidOptions(o);
+    (void)buildRigidModel(o.bodies);
+  } catch (const std::invalid_argument& e) {
+    std::string what = e.what();
+    if (what.rfind("rigid.", 0) == 0) what = what.substr(6);
+    r.fail(f, what);
+  }
+  return o;
+}
+
+}  // namespace weft::io_detail

@@ -1,0 +1,193 @@
+#include "weft/scene/rigid_scenes.hpp"
+
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include "weft/scene/builtin_scenes.hpp"
+
+namespace weft {
+
+namespace {
+
+using Point3 = Eigen::Vector3d;
+
+RigidBodyDesc staticBox(const std::string& name, const Point3& centre, const Point3& half) {
+  RigidBodyDesc b;
+  b.name = name;
+  b.motion = BodyMotion::Static;
+  RigidShapeDesc s;
+  s.kind = RigidShapeDesc::Kind::Box;
+  s.halfExtents = half;
+  b.shapes.push_back(s);
+  b.position = centre;
+  return b;
+}
+
+RigidBodyDesc dynamicBox(const std::string& name, const Point3& centre, const Point3& half, double density) {
+  RigidBodyDesc b = staticBox(name, centre, half);
+  b.motion = BodyMotion::Dynamic;
+  b.density = density;
+  return b;
+}
+
+RigidBodyDesc floorBody() { return staticBox("floor", {0, -0.5, 0}, {5, 0.5, 5}); }
+
+/// splitmix64: a generator whose output is fixed by its definition (unlike the standard
+/// distributions), so the pile is the same scene on every machine and compiler.
+struct SplitMix {
+  std::uint64_t state;
+  double uniform() {  // [0, 1)
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return static_cast<double>(z >> 11) * 0x1.0p-53;
+  }
+};
+
+std::vector<Point3> icosahedron(double radius) {
+  const double p = (1 + std::sqrt(5.0)) / 2;
+  std::vector<Point3> v = {{-1, p, 0},  {1, p, 0},  {-1, -p, 0}, {1, -p, 0}, {0, -1, p},  {0, 1, p},
+                           {0, -1, -p}, {0, 1, -p}, {p, 0, -1},  {p, 0, 1},  {-p, 0, -1}, {-p, 0, 1}};
+  for (Point3& x : v) x *= radius / std::sqrt(1 + p * p);
+  return v;
+}
+
+std::vector<Point3> tetrahedron(double radius) {
+  const double s = radius / std::sqrt(3.0);
+  return {{s, s, s}, {s, -s, -s}, {-s, s, -s}, {-s, -s, s}};
+}
+
+}  // namespace
+
+RigidOptions ballOnBrickScene() {
+  RigidOptions o;
+  o.bodies.push_back(floorBody());
+  o.bodies.push_back(dynamicBox("brick", {0, 0.1, 0}, {0.2, 0.1, 0.1}, 2000));
+  RigidBodyDesc ball;
+  ball.name = "ball";
+  RigidShapeDesc s;
+  s.kind = RigidShapeDesc::Kind::Sphere;
+  s.radius = 0.1;
+  ball.shapes.push_back(s);
+  ball.density = 1000;
+  ball.position = {0, 0.3, 0};
+  o.bodies.push_back(ball);
+  return o;
+}
+
+RigidOptions stackScene(Index boxes) {
+  if (boxes < 1) throw std::invalid_argument("stackScene: boxes must be >= 1, got " + std::to_string(boxes));
+  RigidOptions o;
+  o.bodies.push_back(floorBody());
+  for (Index i = 0; i < boxes; ++i)
+    o.bodies.push_back(dynamicBox("box" + std::to_string(i), {0, 0.25 + 0.5 * i, 0}, {0.25, 0.25, 0.25}, 500));
+  return o;
+}
+
+RigidOptions pileScene(Index bodies) {
+  if (bodies < 1) throw std::invalid_argument("pileScene: bodies must be >= 1, got " + std::to_string(bodies));
+  RigidOptions o;
+  o.bodies.push_back(staticBox("floor", {0, -0.5, 0}, {2.5, 0.5, 2.5}));
+  o.bodies.push_back(staticBox("wall-x-", {-2.1, 0.5, 0}, {0.1, 0.5, 2.2}));
+  o.bodies.push_back(staticBox("wall-x+", {2.1, 0.5, 0}, {0.1, 0.5, 2.2}));
+  o.bodies.push_back(staticBox("wall-z-", {0, 0.5, -2.1}, {2.0, 0.5, 0.1}));
+  o.bodies.push_back(staticBox("wall-z+", {0, 0.5, 2.1}, {2.0, 0.5, 0.1}));
+  SplitMix rng{20261123};
+  // A grid 10 x 10 wide over the bin, as many layers as it takes, 0.35 m apart.
+  const Index side = 10;
+  const double spacing = 0.35;
+  for (Index i = 0; i < bodies; ++i) {
+    const Index layer = i / (side * side), row = (i / side) % side, col = i % side;
+    RigidBodyDesc b;
+    b.name = "body" + std::to_string(i);
+    b.density = 500 + 1000 * rng.uniform();
+    b.position = {(col - 4.5) * spacing + 0.05 * (rng.uniform() - 0.5), 0.4 + layer * spacing,
+                  (row - 4.5) * spacing + 0.05 * (rng.uniform() - 0.5)};
+    b.orientation =
+        Eigen::Quaterniond(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5 + 1e-3)
+            .normalized();
+    const double size = 0.1 + 0.1 * rng.uniform();
+    RigidShapeDesc s;
+    switch (i % 4) {
+      case 0:
+        s.kind = RigidShapeDesc::Kind::Box;
+        s.halfExtents =
+            Point3(0.5 + 0.5 * rng.uniform(), 0.5 + 0.5 * rng.uniform(), 0.5 + 0.5 * rng.uniform()) * (0.5 * size);
+        break;
+      case 1:
+        s.kind = RigidShapeDesc::Kind::Sphere;
+        s.radius = 0.5 * size;
+        break;
+      case 2:
+        s.kind = RigidShapeDesc::Kind::Hull;
+        s.points = icosahedron(0.6 * size);
+        break;
+      default:
+        s.kind = RigidShapeDesc::Kind::Hull;
+        s.points = tetrahedron(0.7 * size);
+        break;
+    }
+    b.shapes.push_back(s);
+    o.bodies.push_back(b);
+  }
+  return o;
+}
+
+RigidOptions bulletScene(double speed) {
+  if (!(std::isfinite(speed) && speed >= 0))
+    throw std::invalid_argument("bulletScene: speed must be finite and >= 0 (m/s), got " + std::to_string(speed));
+  RigidOptions o;
+  o.bodies.push_back(staticBox("plate", {1.005, 0, 0}, {0.005, 1, 1}));
+  RigidBodyDesc bullet = dynamicBox("bullet", {0, 0, 0}, {0.02, 0.02, 0.02}, 8000);
+  bullet.velocity = {speed, 0, 0};
+  o.bodies.push_back(bullet);
+  return o;
+}
+
+RigidOptions slopeScene(double degrees, double mu) {
+  if (!(degrees >= 0 && degrees < 90))
+    throw std::invalid_argument("slopeScene: degrees must be in [0, 90), got " + std::to_string(degrees));
+  if (!(std::isfinite(mu) && mu >= 0))
+    throw std::invalid_argument("slopeScene: mu must be finite and >= 0, got " + std::to_string(mu));
+  const double a = degrees * 3.14159265358979323846 / 180;
+  const Eigen::Quaterniond tilt(Eigen::AngleAxisd(a, Point3::UnitZ()));  // down the slope: -x
+  const Point3 up = tilt * Point3::UnitY();
+  RigidOptions o;
+  RigidBodyDesc plane = staticBox("slope", -0.5 * up, {5, 0.5, 5});
+  plane.orientation = tilt;
+  plane.staticFriction = plane.kineticFriction = mu;
+  o.bodies.push_back(plane);
+  RigidBodyDesc box = dynamicBox("box", 0.1 * up, {0.1, 0.1, 0.1}, 1000);
+  box.orientation = tilt;
+  box.staticFriction = box.kineticFriction = mu;
+  o.bodies.push_back(box);
+  return o;
+}
+
+RigidOptions hammockBall() {
+  RigidOptions o;
+  RigidBodyDesc ball;
+  ball.name = "ball";
+  RigidShapeDesc s;
+  s.kind = RigidShapeDesc::Kind::Sphere;
+  s.radius = 0.12;
+  ball.shapes.push_back(s);
+  ball.mass = 1;
+  ball.position = {0, 1.0, 0};
+  o.bodies.push_back(ball);
+  return o;
+}
+
+ClothGridSpec hammockCloth(Index size) {
+  if (size < 2) throw std::invalid_argument("hammockCloth: size must be >= 2, got " + std::to_string(size));
+  ClothGridSpec spec = flagSpec(size);
+  spec.origin = {-0.5, 0.5, -0.5};
+  return spec;
+}
+
+std::vector<Index> hammockPins(Index size) { return {0, size - 1, size * (size - 1), size * size - 1}; }
+
+}  // namespace weft
