@@ -12,31 +12,28 @@
 // path over the step, so they end each step exactly on it) and push dynamic bodies without
 // being pushed; dynamic bodies obey gravity and contacts.
 //
-// One step of length h (RigidWorld::step), after Catto's sequential impulses as Box2D v3
-// runs them (warm start, solve with bias, integrate, relax without bias, restitution):
-//   1. velocities: v += g h for dynamic bodies; kinematic bodies take their path's chord.
+// One step of length h (RigidWorld::step), Catto's sequential impulses substepped as Box2D
+// v3 runs them (docs/rigid-bodies.md has the measurements behind each choice):
+//   1. kinematic bodies take their path's chord; gravity (for the swept bounds only).
 //   2. broad phase: each piece's world box, swept over the step (the box at the start
 //      united with the box moved by v h, grown by the rotation |w| h r and the speculative
 //      distance: the extruded silhouette of the original design), sort-and-sweep along x
-//      in (min x, index) order, pairs of pieces of different bodies with at least one
-//      dynamic body.
-//   3. narrow phase (parallel over pairs, each writing its own slot): a contact manifold
-//      of up to 4 points per pair through rigid/narrow_phase.hpp (exact, OFG or witness)
-//      with a speculative margin of speculativeDistance plus the pair's relative motion
-//      bound over the step, so a fast body meets what lies in its path within the step
-//      (no tunnelling without sub-stepping or rollback).
-//   4. contact constraints, serial in pair order: normal, two tangents, effective masses;
-//      accumulated impulses of the previous step's point with the same pair and feature
-//      id are applied first (warm starting). A point with separation s > 0 lets the bodies
-//      approach by s within the step (speculative contact); a penetrating point is pushed
-//      out at penetrationRate x (depth - linearSlop) / h at most maxPushVelocity.
-//   5. velocityIterations passes of normal then friction impulses (Coulomb cone, static
-//      coefficient while the point's tangential speed is below staticSpeed, kinetic above),
-//      positions integrated (x += v h; rotation with the body's world angular momentum
-//      held fixed, RK4 on the quaternion, so a free body keeps L exactly and shows the
-//      gyroscopic precession and the tennis-racket flip), positionIterations passes without
-//      the push-out bias (it must not stay in the velocities), then restitution for points
-//      that closed faster than restitutionThreshold.
+//      in (min x, index) order, pairs of pieces of different bodies, one at least dynamic.
+//   3. narrow phase (parallel over pairs, each writing its own slot): a manifold of up to 4
+//      points (rigid/narrow_phase.hpp: exact, OFG or witness) with a speculative margin of
+//      speculativeDistance plus the pair's relative motion bound over the step, so a fast
+//      body meets what lies in its path within the step (no tunnelling, no rollback).
+//   4. constraints in pair order, lever arms and I^-1 (r x d) precomputed, per manifold the
+//      inverse of its points' normal coupling; impulses of the last step's point with the
+//      same pair and feature id (else the nearest within 1 cm) kept for warm starting.
+//   5. `substeps` substeps of h / substeps: gravity; warm start (not an impact's impulse);
+//      velocityIterations passes of friction (Coulomb cone; static coefficient below
+//      staticSpeed; Jacobi within a manifold) and the manifold's normal impulses as a block
+//      (a speculative point may close its gap within the substep, no more); split impulses
+//      for penetration deeper than linearSlop (they move positions only); positions
+//      (rotation with the world angular momentum held fixed, RK4 on the quaternion, so a
+//      free body keeps L exactly and shows the tennis-racket flip); separations advanced.
+//   6. restitution for points that closed faster than restitutionThreshold.
 // The solver is serial and the parallel passes write disjoint slots, so the result is
 // bitwise the same for any thread count. Every buffer is sized at construction; step()
 // never allocates and never throws: a full pair buffer or a non-finite body is reported in
