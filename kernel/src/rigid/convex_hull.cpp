@@ -21,18 +21,15 @@
 #include <utility>
 #include <vector>
 
+#include "rigid_text.hpp"
+
 namespace weft {
 
 using Eigen::Vector3d;
 
 namespace {
 
-/// Shortest round-trip text of v ("-1", "0.1", "nan").
-std::string formatNumber(double v) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
-  return std::string(buffer, result.ptr);
-}
+using rigid_detail::formatNumber;
 
 /// Fills edges (see the conventions above), centroid and boundingRadius from vertices,
 /// faces and faceVertices. Throws std::logic_error when a directed edge appears twice or an

@@ -17,6 +17,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "rigid_text.hpp"
+
 namespace weft {
 
 using Eigen::Matrix3d;
@@ -24,12 +26,7 @@ using Eigen::Vector3d;
 
 namespace {
 
-/// Shortest round-trip text of v ("-1", "0.1", "nan").
-std::string formatNumber(double v) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
-  return std::string(buffer, result.ptr);
-}
+using rigid_detail::formatNumber;
 
 void requirePositive(const char* function, const char* field, double value) {
   if (!std::isfinite(value) || !(value > 0))

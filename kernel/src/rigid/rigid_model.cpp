@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "rigid_text.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
 namespace weft {
@@ -18,14 +19,9 @@ using Mat3 = Eigen::Matrix3d;
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
-std::string text(double v) {
-  std::ostringstream out;
-  out.precision(10);
-  out << v;
-  return out.str();
-}
+std::string text(double v) { return rigid_detail::formatNumber(v); }
 
-std::string text(const Vec3& v) { return "(" + text(v.x()) + ", " + text(v.y()) + ", " + text(v.z()) + ")"; }
+std::string text(const Vec3& v) { return rigid_detail::formatVector(v); }
 
 void require(bool ok, const std::string& field, const std::string& rule, const std::string& got) {
   if (!ok) throw std::invalid_argument(field + " must be " + rule + ", got " + got);

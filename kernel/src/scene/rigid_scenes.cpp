@@ -32,6 +32,17 @@ RigidBodyDesc dynamicBox(const std::string& name, const Point3& centre, const Po
   return b;
 }
 
+RigidBodyDesc ballBody(const Point3& centre, double radius) {
+  RigidBodyDesc ball;
+  ball.name = "ball";
+  RigidShapeDesc s;
+  s.kind = RigidShapeDesc::Kind::Sphere;
+  s.radius = radius;
+  ball.shapes.push_back(s);
+  ball.position = centre;
+  return ball;
+}
+
 RigidBodyDesc floorBody() { return staticBox("floor", {0, -0.5, 0}, {5, 0.5, 5}); }
 
 /// splitmix64: a generator whose output is fixed by its definition (unlike the standard
@@ -66,15 +77,7 @@ RigidOptions ballOnBrickScene() {
   RigidOptions o;
   o.bodies.push_back(floorBody());
   o.bodies.push_back(dynamicBox("brick", {0, 0.1, 0}, {0.2, 0.1, 0.1}, 2000));
-  RigidBodyDesc ball;
-  ball.name = "ball";
-  RigidShapeDesc s;
-  s.kind = RigidShapeDesc::Kind::Sphere;
-  s.radius = 0.1;
-  ball.shapes.push_back(s);
-  ball.density = 1000;
-  ball.position = {0, 0.3, 0};
-  o.bodies.push_back(ball);
+  o.bodies.push_back(ballBody({0, 0.3, 0}, 0.1));  // 1000 kg/m^3
   return o;
 }
 
@@ -169,14 +172,8 @@ RigidOptions slopeScene(double degrees, double mu) {
 
 RigidOptions hammockBall() {
   RigidOptions o;
-  RigidBodyDesc ball;
-  ball.name = "ball";
-  RigidShapeDesc s;
-  s.kind = RigidShapeDesc::Kind::Sphere;
-  s.radius = 0.12;
-  ball.shapes.push_back(s);
+  RigidBodyDesc ball = ballBody({0, 1.0, 0}, 0.12);
   ball.mass = 1;
-  ball.position = {0, 1.0, 0};
   o.bodies.push_back(ball);
   return o;
 }

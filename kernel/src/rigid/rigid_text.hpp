@@ -1,0 +1,22 @@
+// rigid_text.hpp — numbers in the rigid module's messages (private to kernel/src/rigid).
+#pragma once
+
+#include <Eigen/Core>
+#include <charconv>
+#include <string>
+
+namespace weft::rigid_detail {
+
+/// Shortest round-trip text of v ("-1", "0.1", "nan").
+inline std::string formatNumber(double v) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return std::string(buffer, result.ptr);
+}
+
+/// "(x, y, z)".
+inline std::string formatVector(const Eigen::Vector3d& v) {
+  return "(" + formatNumber(v.x()) + ", " + formatNumber(v.y()) + ", " + formatNumber(v.z()) + ")";
+}
+
+}  // namespace weft::rigid_detail
