@@ -2,8 +2,8 @@
 //
 //   build/bin/weft_narrow_study [--pairs N] [--out DIR]
 //
-// For each shape (box: 6 faces; icosahedron: 20 faces; sphere: the hull of a 3-times
-// subdivided icosphere, 1280 faces) and situation, N random pairs of poses (fixed seeds, the
+// For each shape (box: 6 faces; icosahedron: 20 faces; sphere: the hull of weft's icosphere
+// with 8 divisions, 1280 faces) and situation, N random pairs of poses (fixed seeds, the
 // same on every machine: splitmix64):
 //   resting   B placed on a random face of A, tilted by up to 3 degrees, turned about the
 //             normal at random, its gap to A uniform in [-2, 2] mm: face contacts.
@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "weft/collide/shapes.hpp"
 #include "weft/rigid/convex_hull.hpp"
 #include "weft/rigid/narrow_phase.hpp"
 
@@ -71,35 +72,11 @@ struct SplitMix {
   }
 };
 
-std::vector<Vector3d> icosphere(int levels, double radius) {
-  const double t = (1 + std::sqrt(5.0)) / 2;
-  std::vector<Vector3d> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-                             {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  for (Vector3d& x : v) x.normalize();
-  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                                       {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                                       {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                                       {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-  for (int level = 0; level < levels; ++level) {
-    std::vector<std::array<int, 3>> next;
-    std::map<std::pair<int, int>, int> mids;
-    const auto mid = [&](int a, int b) {
-      const std::pair<int, int> key(std::min(a, b), std::max(a, b));
-      const auto found = mids.find(key);
-      if (found != mids.end()) return found->second;
-      v.push_back((v[a] + v[b]).normalized());
-      return mids[key] = static_cast<int>(v.size()) - 1;
-    };
-    for (const auto& [a, b, c] : f) {
-      const int ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
-      next.push_back({a, ab, ca});
-      next.push_back({b, bc, ab});
-      next.push_back({c, ca, bc});
-      next.push_back({ab, bc, ca});
-    }
-    f = std::move(next);
-  }
-  for (Vector3d& x : v) x *= radius;
+/// The vertices of weft's icosphere (20 d^2 triangles on the sphere), as hull input.
+std::vector<Vector3d> icosphere(weft::Index divisions, double radius) {
+  const weft::TriangleMesh mesh = weft::makeIcosphere({0, 0, 0}, radius, divisions);
+  std::vector<Vector3d> v;
+  for (const weft::Vec3d& p : mesh.vertices) v.emplace_back(p.x, p.y, p.z);
   return v;
 }
 
@@ -209,8 +186,8 @@ int main(int argc, char** argv) {
   }
   std::vector<Shape> shapes;
   shapes.push_back({"box", weft::makeBoxHull(Vector3d(0.5, 0.5, 0.5))});
-  shapes.push_back({"icosahedron", weft::makeConvexHull(icosphere(0, 0.6))});
-  shapes.push_back({"sphere-1280", weft::makeConvexHull(icosphere(3, 0.5))});
+  shapes.push_back({"icosahedron", weft::makeConvexHull(icosphere(1, 0.6))});
+  shapes.push_back({"sphere-1280", weft::makeConvexHull(icosphere(8, 0.5))});
   std::vector<Row> rows;
   std::uint64_t seed = 1;
   for (const Shape& s : shapes) {

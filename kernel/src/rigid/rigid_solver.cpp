@@ -228,10 +228,10 @@ void RigidWorld::apply(const Constraint& c, int k, double lambda) {
   state_.w[c.bodyB] += lambda * c.angularB[k];
 }
 
-void RigidWorld::solveFriction(Constraint& c) {
+void RigidWorld::solveFriction(Constraint& c, double slip1, double slip2, double share) {
   const double limit = c.friction * c.normalImpulse;
-  double l1 = c.tangentImpulse1 - c.tangentMass1 * relativeVelocity(c, 1);
-  double l2 = c.tangentImpulse2 - c.tangentMass2 * relativeVelocity(c, 2);
+  double l1 = c.tangentImpulse1 - share * c.tangentMass1 * slip1;
+  double l2 = c.tangentImpulse2 - share * c.tangentMass2 * slip2;
   const double len = std::sqrt(l1 * l1 + l2 * l2);
   if (len > limit) {  // Coulomb's cone
     const double scale = len > 0 ? limit / len : 0;
@@ -260,7 +260,7 @@ void RigidWorld::solveVelocities(bool backward) {
     Constraint* c = constraints_.data() + block.first;
     // Friction first, the normal last (non-penetration matters most).
     if (block.count == 1) {
-      solveFriction(c[0]);
+      solveFriction(c[0], relativeVelocity(c[0], 1), relativeVelocity(c[0], 2), 1.0);
       solveNormal(c[0]);
       continue;
     }
@@ -274,22 +274,7 @@ void RigidWorld::solveVelocities(bool backward) {
         slip[2 * p + 1] = relativeVelocity(c[p], 2);
       }
       const double share = 1.0 / block.count;
-      for (int p = 0; p < block.count; ++p) {
-        Constraint& q = c[p];
-        const double limit = q.friction * q.normalImpulse;
-        double l1 = q.tangentImpulse1 - share * q.tangentMass1 * slip[2 * p];
-        double l2 = q.tangentImpulse2 - share * q.tangentMass2 * slip[2 * p + 1];
-        const double len = std::sqrt(l1 * l1 + l2 * l2);
-        if (len > limit) {
-          const double scale = len > 0 ? limit / len : 0;
-          l1 *= scale;
-          l2 *= scale;
-        }
-        apply(q, 1, l1 - q.tangentImpulse1);
-        apply(q, 2, l2 - q.tangentImpulse2);
-        q.tangentImpulse1 = l1;
-        q.tangentImpulse2 = l2;
-      }
+      for (int p = 0; p < block.count; ++p) solveFriction(c[p], slip[2 * p], slip[2 * p + 1], share);
     }
     // The manifold's normal impulses together (the block solver Box2D v2 uses for two
     // points, here for up to four): the increments that bring every point to its target

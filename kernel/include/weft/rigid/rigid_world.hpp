@@ -284,7 +284,9 @@ class RigidWorld {
   double relativeVelocity(const Constraint& c, int k) const;
   /// Applies lambda along direction k (B gets +, A gets -).
   void apply(const Constraint& c, int k, double lambda);
-  void solveFriction(Constraint& c);
+  /// Coulomb friction at one point for tangential velocities (slip1, slip2), taking `share` of
+  /// the correction (1: Gauss-Seidel; 1 / points: Jacobi within a manifold).
+  void solveFriction(Constraint& c, double slip1, double slip2, double share);
   void solveNormal(Constraint& c);
   void advanceSeparations(double hs);
   void solvePositions(double h);
