@@ -337,6 +337,34 @@ TEST(RigidAllocation, StepsWithRigidBodiesDoNotAllocate) {
     }
 }
 
+TEST(RigidAllocation, ClothCarryingBodiesDoesNotAllocate) {
+  // The tablecloth trick: particle contacts and support contacts every step.
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
+    const Index n = 16;
+    ModelBuilder<double> builder;
+    addClothGrid(builder, tableclothCloth(n));
+    const std::vector<Index> grip = tableclothGrip(n);
+    for (const Index i : grip) builder.pin(i);
+    SimulationOptions options;
+    options.integrator = IntegratorKind::SymplecticEuler;
+    options.threads = threads;
+    options.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    options.rigid = tableclothBodies();
+    options.kinematicPins.push_back({grip, tableclothPull(4.0)});
+    Simulation<double> sim(builder.build(), options);
+    ASSERT_TRUE(sim.run(50).ok());  // warm-up: the pull starts, warm starting fills
+    StepStatus status;
+    const Counts steps = countDuring([&] {
+      for (int k = 0; k < 20; ++k) status = sim.step();
+    });
+    ASSERT_TRUE(status.ok()) << status.message();
+    EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
+    EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+    EXPECT_GT(sim.rigidWorld()->lastStats().supportContacts, 10);
+  }
+}
+
 TEST(ClockAllocation, AdvancingAndInterpolatingDoNotAllocate) {
   SimulationOptions options;
   options.threads = 2;

@@ -381,5 +381,98 @@ INSTANTIATE_TEST_SUITE_P(All, RigidMethods,
                                            NarrowPhaseMethod::Witness),
                          [](const auto& p) { return std::string(narrowPhaseMethodName(p.param)); });
 
+// ---------------------------------------------------------------------------------------
+// The tablecloth trick: particles lying on the table carry the bodies standing on them
+// (support contacts), whose friction drags the bodies as far as Coulomb allows.
+
+struct TableclothRun {
+  std::vector<Vec3> start, end;  // body origins (0 table, 1 and 2 boxes, 3 ball)
+  std::vector<Vec3> endVelocity;
+  double edgeMoved = 0;       // m: how far the pulled edge went
+  std::int64_t supports = 0;  // support contacts over the run
+  std::uint64_t particleHash = 0, bodyHash = 0;
+};
+
+TableclothRun runTablecloth(double speed, double seconds, int threads, bool supports = true, Index n = 32) {
+  ModelBuilder<double> builder;
+  addClothGrid(builder, tableclothCloth(n));
+  const std::vector<Index> grip = tableclothGrip(n);
+  for (const Index i : grip) builder.pin(i);
+  SimulationOptions options;
+  options.integrator = IntegratorKind::SymplecticEuler;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
+  options.threads = threads;
+  options.rigid = tableclothBodies();
+  options.rigid.particleSupports = supports;
+  options.kinematicPins.push_back({grip, tableclothPull(speed)});
+  Simulation<double> sim(builder.build(), options);
+  TableclothRun run;
+  const RigidWorld& world = *sim.rigidWorld();
+  for (Index b = 0; b < world.model().bodyCount(); ++b) run.start.push_back(world.bodyOrigin(b));
+  const double edge0 = sim.state().x(grip[0], 0);
+  const int steps = static_cast<int>(std::lround(seconds / options.dt));
+  for (int k = 0; k < steps; ++k) {
+    const StepStatus s = sim.step();
+    EXPECT_TRUE(s.ok()) << s.message();
+    if (!s.ok()) break;
+    run.supports += world.lastStats().supportContacts;
+  }
+  for (Index b = 0; b < world.model().bodyCount(); ++b) {
+    run.end.push_back(world.bodyOrigin(b));
+    run.endVelocity.push_back(world.state().v[b]);
+  }
+  run.edgeMoved = sim.state().x(grip[0], 0) - edge0;
+  run.particleHash = stateHash(sim.state());
+  run.bodyHash = rigidStateHash(world.state());
+  return run;
+}
+
+TEST(Tablecloth, PulledFastTheClothComesOutAndTheyStay) {
+  // 4 m/s: the cloth leaves from under them in about 0.2 s, friction (mu 0.4) can give
+  // them at most ~0.8 m/s in that time. Boxes: a few cm. The ball: the friction impulse
+  // at its lowest point leaves it no angular momentum about its contact with the table,
+  // so once the cloth is gone it skids to a stop (a kicked ball would roll on).
+  const TableclothRun r = runTablecloth(4.0, 0.6, 1);
+  EXPECT_NEAR(r.edgeMoved, 1.4, 1e-9);
+  EXPECT_GT(r.supports, 1000);
+  for (int b = 1; b <= 3; ++b) {
+    SCOPED_TRACE(b);
+    const Vec3 moved = r.end[b] - r.start[b];
+    EXPECT_LT(std::hypot(moved.x(), moved.z()), b == 3 ? 0.15 : 0.08) << moved.transpose();
+    EXPECT_GT(moved.x(), 0.01) << "friction did not act at all";
+    // On the table now: one cloth thickness (2 x 0.005 m) lower.
+    EXPECT_NEAR(moved.y(), -0.01, 1e-3);
+    EXPECT_LT(r.endVelocity[b].norm(), 0.02) << "still moving";
+  }
+}
+
+TEST(Tablecloth, PulledSlowlyTheyComeAlong) {
+  // 0.4 m/s: static friction carries the boxes with the cloth. The ball rolls on it: a
+  // uniform ball on a belt that starts moving at V ends up rolling at 2/7 V.
+  const TableclothRun r = runTablecloth(0.4, 1.5, 1);
+  EXPECT_NEAR(r.edgeMoved, 0.6, 1e-9);
+  for (int b = 1; b <= 2; ++b) {
+    SCOPED_TRACE(b);
+    EXPECT_GT(r.end[b].x() - r.start[b].x(), 0.9 * r.edgeMoved);
+    EXPECT_NEAR(r.end[b].y() - r.start[b].y(), 0.0, 2e-3) << "not on the cloth any more";
+  }
+  EXPECT_NEAR((r.end[3].x() - r.start[3].x()) / r.edgeMoved, 2.0 / 7.0, 0.05);
+}
+
+TEST(Tablecloth, WithoutSupportsTheBoxesSinkThroughTheCloth) {
+  // The same slow pull with support contacts off: a light particle between a heavy box
+  // and the table cannot hold the box up through the explicit exchange alone.
+  const TableclothRun r = runTablecloth(0.4, 0.5, 1, false);
+  EXPECT_EQ(r.supports, 0);
+  for (int b = 1; b <= 2; ++b) EXPECT_LT(r.end[b].y() - r.start[b].y(), -0.005) << b;
+}
+
+TEST(Tablecloth, IsBitwiseTheSameOnOneAndTwoThreads) {
+  const TableclothRun one = runTablecloth(4.0, 0.1, 1), two = runTablecloth(4.0, 0.1, 2);
+  EXPECT_EQ(one.particleHash, two.particleHash);
+  EXPECT_EQ(one.bodyHash, two.bodyHash);
+  EXPECT_GT(one.supports, 0);
+}
+
 }  // namespace
 }  // namespace weft

@@ -311,6 +311,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["body_contacts"] = last.contacts;
       j["body_touching_pairs"] = last.touchingPairs;
       j["particle_body_contacts"] = sim.lastParticleBodyContacts().contacts;  // particles touching bodies, last step
+      j["support_contacts"] = last.supportContacts;  // held particles carrying bodies, last step
       j["body_max_penetration"] = last.maxPenetration;
       j["body_energy"] = rigid->energy();
       j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
@@ -345,8 +346,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       const weft::RigidStats& total = rigid->totalStats();
       out << "  rigid bodies " << rigid->model().bodyCount() << " bodies, " << rigid->lastStats().contacts
           << " contacts at the end (deepest " << rigid->lastStats().maxPenetration << " m), "
-          << sim.lastParticleBodyContacts().contacts << " particle contacts, narrow phase "
-          << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method) << ", witness hit rate "
+          << sim.lastParticleBodyContacts().contacts << " particle contacts, " << rigid->lastStats().supportContacts
+          << " support contacts, narrow phase " << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method)
+          << ", witness hit rate "
           << (total.narrowQueries > 0
                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
                   : 0.0)

@@ -663,8 +663,9 @@ SceneSpec readSceneFile(const std::string& path) {
 // ---------------------------------------------------------------------------------------
 
 std::vector<std::string> builtinSceneNames() {
-  return {"flag",      "rope",          "flag-wind", "hanging-cloth", "drape",  "drape-mesh", "rope-on-pegs",
-          "fast-ball", "ball-on-brick", "stack",     "pile",          "bullet", "slope",      "hammock"};
+  return {"flag",         "rope",      "flag-wind",        "hanging-cloth",  "drape", "drape-mesh",
+          "rope-on-pegs", "fast-ball", "ball-on-brick",    "stack",          "pile",  "bullet",
+          "slope",        "hammock",   "tablecloth-trick", "tablecloth-slow"};
 }
 
 SceneSpec builtinSceneSpec(const std::string& name, Index size) {
@@ -747,6 +748,21 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     scene.steps = static_cast<std::int64_t>(std::ceil(6.0 / scene.simulation.dt));
     scene.simulation.effects.drag = 0.03;  // a heavy, damped fabric: the ball comes to rest
     scene.simulation.rigid = hammockBall();
+  } else if (name == "tablecloth-trick" || name == "tablecloth-slow") {
+    // Two boxes and a ball on a 1 m cloth (size x size, default 32) on a table; the
+    // cloth's +x edge is pulled along +x (weft/scene/rigid_scenes.hpp): at 4 m/s it slides
+    // out from under them and they stay (1 s); at 0.4 m/s they come along (2 s).
+    const bool fast = name == "tablecloth-trick";
+    const Index n = size > 0 ? size : 32;
+    if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));
+    body.kind = BodyKind::ClothGrid;
+    body.name = "cloth";
+    body.grid = tableclothCloth(n);
+    body.pins.push_back({tableclothGrip(n), std::nullopt, tableclothPull(fast ? 4.0 : 0.4)});
+    scene.simulation.integrator = IntegratorKind::SymplecticEuler;
+    scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    scene.steps = static_cast<std::int64_t>(std::ceil((fast ? 1.0 : 2.0) / scene.simulation.dt));
+    scene.simulation.rigid = tableclothBodies();
   } else if (name == "rope") {
     const Index n = size > 0 ? size : defaultSceneSize(BuiltinScene::Rope);
     if (n < 2) throw SceneError(name + ": size must be >= 2, got " + std::to_string(n));

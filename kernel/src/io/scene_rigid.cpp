@@ -73,7 +73,8 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   r.object(j, f,
            {"bodies", "narrow_phase", "ofg_faces", "substeps", "velocity_iterations", "position_iterations",
             "speculative_distance", "continuous", "linear_slop", "penetration_rate", "max_push_velocity",
-            "restitution_threshold", "static_speed", "max_pairs", "particle_contacts", "particle_thickness"});
+            "restitution_threshold", "static_speed", "max_pairs", "particle_contacts", "particle_supports",
+            "particle_thickness"});
   RigidOptions o;
   const std::string method = r.choice(j, f, "narrow_phase", "witness", {"exact", "ofg", "witness"});
   o.narrowPhase.method = method == "exact" ? NarrowPhaseMethod::Exact
@@ -94,6 +95,7 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   o.staticSpeed = r.number(j, f, "static_speed", o.staticSpeed, 0, true, " m/s");
   o.maxPairs = static_cast<Index>(r.integer(j, f, "max_pairs", 0, 0, Index(1) << 28));
   o.particleContacts = r.boolean(j, f, "particle_contacts", o.particleContacts);
+  o.particleSupports = r.boolean(j, f, "particle_supports", o.particleSupports);
   o.particleThickness = r.number(j, f, "particle_thickness", o.particleThickness, 0, false, " m");
   const std::string fb = Reader::join(f, "bodies");
   if (!j.contains("bodies")) r.fail(fb, "is required: a non-empty array of rigid bodies");

@@ -15,6 +15,9 @@ using Mat3 = Eigen::Matrix3d;
 
 constexpr double kEpsilon = 1e-6;  // m: how close to the thickened surface the advancement stops
 constexpr int kMaxAdvances = 64;
+// A held particle supports a body whose direction from it is within 60 degrees of the
+// normal it is held along (cos 60 = 0.5).
+constexpr double kSupportAlignment = 0.5;
 
 /// A lower bound of the distance from `p` (the piece's frame) to the piece, exact for a
 /// sphere and inside a hull (the largest face-plane distance), 1-Lipschitz: safe steps
@@ -53,6 +56,113 @@ ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index pa
   end_.resize(pieces);
   boxMin_.resize(pieces);
   boxMax_.resize(pieces);
+  supportSlots_.resize(records_.size());
+  supportCount_.resize(static_cast<std::size_t>(particleCount));
+  supports_.reserve(records_.size());
+}
+
+template <class S>
+Index ParticleBodyContacts<S>::collectSupports(const Vec3Array<S>& x, const Vec3Array<S>& v, const ScalarArray<S>& w,
+                                               RigidWorld& world, const Executor& exec) {
+  const RigidModel& m = world.model();
+  const RigidState& now = world.state();
+  const Index pieces = m.pieceCount();
+  const double thickness = thickness_;
+  // A particle within half a thickness of a static or kinematic piece lies on it (held);
+  // a held particle supports a dynamic piece within the speculative distance.
+  const double hold = 0.5 * thickness;
+  const double reach = world.options().speculativeDistance;
+  bool anyDynamic = false;
+  for (Index p = 0; p < pieces; ++p) {
+    end_[p] = world.piecePose(p, now);
+    const RigidPiece& piece = m.pieces[p];
+    anyDynamic = anyDynamic || m.motion[piece.body] == BodyMotion::Dynamic;
+    const Vec3 half = 0.5 * (piece.localMax - piece.localMin), mid = 0.5 * (piece.localMax + piece.localMin);
+    const Vec3 c = end_[p].position + end_[p].rotation * mid;
+    const Vec3 e = end_[p].rotation.cwiseAbs() * half;
+    const double grow = thickness + std::max(hold, reach);
+    boxMin_[p] = c - e - Vec3::Constant(grow);
+    boxMax_[p] = c + e + Vec3::Constant(grow);
+  }
+  if (!anyDynamic) {
+    world.setSupports(nullptr, 0);
+    return 0;
+  }
+  // Separation (distance - thickness) of a particle at `c` from piece p within `margin`,
+  // the normal from the particle into the piece and the point on the piece's surface.
+  const auto separation = [&](Index p, const Vec3& c, double margin, Vec3& normal, Vec3& point) {
+    const RigidPiece& piece = m.pieces[p];
+    if (piece.kind == RigidShapeDesc::Kind::Sphere) {
+      const Vec3 d = end_[p].position - c;
+      const double dist = d.norm();
+      normal = dist > 1e-12 ? Vec3(d / dist) : Vec3(-Vec3::UnitY());
+      point = end_[p].position - piece.radius * normal;
+      return dist - piece.radius - thickness;
+    }
+    ContactManifold out;
+    collideSphereHull(c, thickness, m.hulls[piece.hull], end_[p], margin, out);
+    if (out.pointCount == 0) return std::numeric_limits<double>::infinity();
+    normal = out.normal;  // from the particle to the hull
+    point = out.points[0].position;
+    return out.points[0].separation;
+  };
+  const Index n = static_cast<Index>(x.rows());
+  exec.parallelFor(n, 256, [&](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i) {
+      int& used = supportCount_[static_cast<std::size_t>(i)];
+      used = 0;
+      const Vec3 c = row(x, i);
+      const auto inBox = [&](Index p) {
+        return !((c.array() > boxMax_[p].array()).any() || (c.array() < boxMin_[p].array()).any());
+      };
+      // Held: pinned (any direction), or lying on a static or kinematic piece, which holds
+      // it along that piece's normal only.
+      const bool pinned = static_cast<double>(w[i]) <= 0;
+      bool held = pinned;
+      Vec3 normal = Vec3::Zero(), point = Vec3::Zero(), holdNormal = Vec3::Zero();
+      double holdSpeed = 0;  // of the holder's surface along holdNormal, m/s
+      for (Index p = 0; p < pieces && !held; ++p) {
+        const Index holder = m.pieces[p].body;
+        if (m.motion[holder] == BodyMotion::Dynamic || !inBox(p)) continue;
+        held = separation(p, c, hold, normal, point) <= hold;
+        holdNormal = -normal;  // from the holder to the particle
+        holdSpeed = (now.v[holder] + now.w[holder].cross(point - now.x[holder])).dot(holdNormal);
+      }
+      if (!held) continue;
+      SupportContact* slots = &supportSlots_[static_cast<std::size_t>(i) * kContactsPerParticle];
+      for (Index p = 0; p < pieces && used < kContactsPerParticle; ++p) {
+        const Index body = m.pieces[p].body;
+        if (m.motion[body] != BodyMotion::Dynamic || !inBox(p)) continue;
+        const double s = separation(p, c, reach, normal, point);
+        if (!(s <= reach)) continue;
+        // A particle lying on a table holds a body up, not sideways: a body beside it (the
+        // cloth sliding against a box's side) is left to the particle contacts. Along the
+        // contact normal the point moves as the holder's surface does (a particle sliding
+        // under a box's lower edge does not push the box away, it drags it by friction; a
+        // particle leaving the table does not throw the box up).
+        Vec3 velocity = row(v, i);
+        if (!pinned) {
+          const double align = normal.dot(holdNormal);
+          if (align < kSupportAlignment) continue;
+          velocity += (holdSpeed * align - velocity.dot(normal)) * normal;
+        }
+        SupportContact& sc = slots[used++];
+        sc.body = body;
+        sc.point = point;
+        sc.normal = normal;
+        sc.separation = s;
+        sc.velocity = velocity;
+        sc.key = (std::uint64_t(std::uint32_t(i)) << 32) | std::uint32_t(p);
+      }
+    }
+  });
+  // In particle order: the same list, and keys increasing, for any thread count.
+  supports_.clear();
+  for (Index i = 0; i < n; ++i)
+    for (int k = 0; k < supportCount_[static_cast<std::size_t>(i)]; ++k)
+      supports_.push_back(supportSlots_[static_cast<std::size_t>(i) * kContactsPerParticle + k]);
+  world.setSupports(supports_.data(), static_cast<Index>(supports_.size()));
+  return static_cast<Index>(supports_.size());
 }
 
 template <class S>

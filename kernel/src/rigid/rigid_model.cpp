@@ -53,6 +53,7 @@ void RigidStats::add(const RigidStats& s) {
   warmStarted += s.warmStarted;
   witnessHits += s.witnessHits;
   narrowQueries += s.narrowQueries;
+  supportContacts += s.supportContacts;
   maxPenetration = std::max(maxPenetration, s.maxPenetration);
 }
 

@@ -203,6 +203,14 @@ void RigidWorld::warmStart() {
     apply(c, 1, c.tangentImpulse1);
     apply(c, 2, c.tangentImpulse2);
   }
+  for (Support& s : supports_) {
+    const bool impact = s.previousSeparation > options_.linearSlop;
+    s.previousSeparation = s.separation;
+    for (int k = 0; k < 3; ++k) {
+      if (impact) s.impulse[k] = 0;
+      applySupport(s, k, s.impulse[k]);
+    }
+  }
 }
 
 void RigidWorld::advanceSeparations(double hs) {
@@ -212,6 +220,10 @@ void RigidWorld::advanceSeparations(double hs) {
     const Vec3 va = state_.v[a] + pushV_[a] + (state_.w[a] + pushW_[a]).cross(c.rA);
     const Vec3 vb = state_.v[b] + pushV_[b] + (state_.w[b] + pushW_[b]).cross(c.rB);
     c.separation += hs * (vb - va).dot(c.normal);
+  }
+  for (Support& s : supports_) {
+    const Vec3 vb = state_.v[s.body] + pushV_[s.body] + (state_.w[s.body] + pushW_[s.body]).cross(s.r);
+    s.separation += hs * (vb.dot(s.direction[0]) - s.speed[0]);
   }
 }
 
@@ -328,6 +340,18 @@ void RigidWorld::solvePositions(double h) {
       pushV_[b] += m.inverseMass[b] * impulse;
       pushW_[b] += invInertiaWorld_[b] * c.rB.cross(impulse);
     }
+    for (Support& s : supports_) {  // the held point does not move: the body alone is pushed
+      const double depth = -(s.separation + options_.linearSlop);
+      if (depth <= 0) continue;
+      const Index b = s.body;
+      const double dv = s.direction[0].dot(pushV_[b]) + s.cross[0].dot(pushW_[b]);
+      const double target = std::min(options_.penetrationRate * depth / h, options_.maxPushVelocity);
+      const double total = std::max(s.pushImpulse - s.mass[0] * (dv - target), 0.0);
+      const double lambda = total - s.pushImpulse;
+      s.pushImpulse = total;
+      pushV_[b] += (m.inverseMass[b] * lambda) * s.direction[0];
+      pushW_[b] += lambda * s.angular[0];
+    }
   }
 }
 
@@ -365,6 +389,82 @@ void RigidWorld::integratePositions(double h, bool last) {
         break;
       }
     }
+  }
+}
+
+void RigidWorld::buildSupports(double h) {
+  // The held points of this step (SupportContact), as constraints on their body alone;
+  // warm started from the last step's point with the same key.
+  const RigidModel& m = *model_;
+  supports_.clear();
+  const double scale = lastSubstep_ > 0 ? h / lastSubstep_ : 1.0;
+  auto last = lastSupports_.begin();
+  for (const SupportContact& in : supportInput_) {
+    Support s;
+    s.body = in.body;
+    s.key = in.key;
+    s.r = in.point - state_.x[in.body];
+    s.direction[0] = in.normal;
+    tangents(in.normal, s.direction[1], s.direction[2]);
+    const Mat3& ii = invInertiaWorld_[in.body];
+    for (int k = 0; k < 3; ++k) {
+      s.cross[k] = s.r.cross(s.direction[k]);
+      s.angular[k] = ii * s.cross[k];
+      const double sum = m.inverseMass[in.body] + s.cross[k].dot(s.angular[k]);
+      s.mass[k] = sum > 0 ? 1 / sum : 0.0;
+      s.speed[k] = s.direction[k].dot(in.velocity);
+    }
+    s.separation = s.previousSeparation = in.separation;
+    last_.maxPenetration = std::max(last_.maxPenetration, -in.separation);
+    const Vec3 u = state_.v[in.body] + state_.w[in.body].cross(s.r) - in.velocity;
+    const Vec3 slip = u - u.dot(in.normal) * in.normal;
+    s.friction = slip.norm() < options_.staticSpeed ? m.staticFriction[in.body] : m.kineticFriction[in.body];
+    // Keys increase in both lists: one merge pass finds the matches.
+    last = std::lower_bound(last, lastSupports_.end(), in.key,
+                            [](const Support& o, std::uint64_t key) { return o.key < key; });
+    if (last != lastSupports_.end() && last->key == in.key) {
+      s.impulse[0] = scale * last->impulse[0];
+      const Vec3 friction = scale * (last->impulse[1] * last->direction[1] + last->impulse[2] * last->direction[2]);
+      s.impulse[1] = friction.dot(s.direction[1]);
+      s.impulse[2] = friction.dot(s.direction[2]);
+    }
+    supports_.push_back(s);  // within the reserved capacity
+  }
+  last_.supportContacts = static_cast<std::int64_t>(supports_.size());
+}
+
+double RigidWorld::supportVelocity(const Support& s, int k) const {
+  return s.direction[k].dot(state_.v[s.body]) + s.cross[k].dot(state_.w[s.body]) - s.speed[k];
+}
+
+void RigidWorld::applySupport(const Support& s, int k, double lambda) {
+  state_.v[s.body] += (model_->inverseMass[s.body] * lambda) * s.direction[k];
+  state_.w[s.body] += lambda * s.angular[k];
+}
+
+void RigidWorld::solveSupports(bool backward) {
+  // Point by point (a support is one particle): friction within Coulomb's cone, then the
+  // normal, which may close a positive gap within the substep and no more.
+  const std::size_t count = supports_.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    Support& s = supports_[backward ? count - 1 - i : i];
+    const double limit = s.friction * s.impulse[0];
+    double l1 = s.impulse[1] - s.mass[1] * supportVelocity(s, 1);
+    double l2 = s.impulse[2] - s.mass[2] * supportVelocity(s, 2);
+    const double len = std::sqrt(l1 * l1 + l2 * l2);
+    if (len > limit) {
+      const double shrink = len > 0 ? limit / len : 0;
+      l1 *= shrink;
+      l2 *= shrink;
+    }
+    applySupport(s, 1, l1 - s.impulse[1]);
+    applySupport(s, 2, l2 - s.impulse[2]);
+    s.impulse[1] = l1;
+    s.impulse[2] = l2;
+    const double allowed = s.separation > 0 ? s.separation * invStep_ : 0.0;
+    const double total = std::max(s.impulse[0] - s.mass[0] * (supportVelocity(s, 0) + allowed), 0.0);
+    applySupport(s, 0, total - s.impulse[0]);
+    s.impulse[0] = total;
   }
 }
 

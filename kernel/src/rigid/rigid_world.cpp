@@ -115,6 +115,30 @@ void RigidWorld::setState(const RigidState& s) {
   lastCaches_.clear();
   lastConstraints_.clear();
   lastPairFirstConstraint_.assign(1, 0);
+  lastSupports_.clear();
+  supportInput_.clear();
+}
+
+void RigidWorld::reserveSupports(Index capacity) {
+  const std::size_t c = static_cast<std::size_t>(std::max<Index>(capacity, 0));
+  supportInput_.reserve(c);
+  supports_.reserve(c);
+  lastSupports_.reserve(c);
+}
+
+void RigidWorld::setSupports(const SupportContact* contacts, Index count) {
+  if (count < 0 || static_cast<std::size_t>(count) > supportInput_.capacity())
+    throw std::invalid_argument("RigidWorld::setSupports: " + std::to_string(count) + " support contacts, room for " +
+                                std::to_string(supportInput_.capacity()) + " (reserveSupports)");
+  for (Index k = 0; k < count; ++k) {
+    const SupportContact& c = contacts[k];
+    if (c.body < 0 || c.body >= model_->bodyCount() || model_->motion[c.body] != BodyMotion::Dynamic)
+      throw std::invalid_argument("RigidWorld::setSupports: contact " + std::to_string(k) + " names body " +
+                                  std::to_string(c.body) + ", not a dynamic body");
+    if (k > 0 && contacts[k - 1].key >= c.key)
+      throw std::invalid_argument("RigidWorld::setSupports: keys must increase (contact " + std::to_string(k) + ")");
+  }
+  supportInput_.assign(contacts, contacts + count);  // within the capacity: no allocation
 }
 
 Eigen::Vector3d RigidWorld::bodyOrigin(Index b) const {
@@ -162,6 +186,7 @@ StepStatus RigidWorld::fail(StepCode code, Index body, double value) {
   s.value = value;
   s.time = backup_.time;
   state_ = backup_;
+  supportInput_.clear();
   return s;
 }
 
@@ -218,13 +243,17 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
     if (m.motion[b] == BodyMotion::Dynamic) state_.v[b] = backup_.v[b];  // gravity comes per substep
   invStep_ = 1 / hs;
   buildConstraints(hs);
+  buildSupports(hs);
   for (int sub = 0; sub < substeps; ++sub) {
     for (Index b = 0; b < n; ++b)
       if (m.motion[b] == BodyMotion::Dynamic) state_.v[b] += hs * gravity_;
     warmStart();
     // Symmetric Gauss-Seidel: sweeps alternate in direction, so no contact point is always
     // solved first.
-    for (int i = 0; i < options_.velocityIterations; ++i) solveVelocities(i % 2 == 1);
+    for (int i = 0; i < options_.velocityIterations; ++i) {
+      solveVelocities(i % 2 == 1);
+      solveSupports(i % 2 == 1);
+    }
     solvePositions(hs);
     integratePositions(hs, sub == substeps - 1);
     advanceSeparations(hs);
@@ -246,6 +275,8 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
   std::swap(caches_, lastCaches_);
   std::swap(constraints_, lastConstraints_);
   std::swap(pairFirstConstraint_, lastPairFirstConstraint_);
+  std::swap(supports_, lastSupports_);
+  supportInput_.clear();  // supports hold for one step
   total_.add(last_);
   return {};
 }

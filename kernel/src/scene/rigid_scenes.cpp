@@ -187,4 +187,61 @@ ClothGridSpec hammockCloth(Index size) {
 
 std::vector<Index> hammockPins(Index size) { return {0, size - 1, size * (size - 1), size * size - 1}; }
 
+namespace {
+// The tablecloth trick's layout: the cloth lies one particle thickness (the default
+// RigidOptions::particleThickness) above the table, the objects one more above it.
+constexpr double kClothThickness = 0.005;  // m
+constexpr double kClothLeft = -0.6;        // m: the cloth spans x in [kClothLeft, kClothLeft + 1]
+constexpr double kPullDistance = 1.4;      // m: the edge ends 0.6 m past the table's end
+}  // namespace
+
+RigidOptions tableclothBodies() {
+  const double top = tableclothTableTop();
+  const double standing = top + 2 * kClothThickness;  // the objects' underside
+  RigidOptions o;
+  RigidBodyDesc table = staticBox("table", {0, 0.5 * top, 0}, {0.8, 0.5 * top, 0.6});
+  table.staticFriction = 0.3;  // the cloth slides on it (the particles take the table's coefficients)
+  table.kineticFriction = 0.25;
+  o.bodies.push_back(table);
+  const double half = 0.08;
+  for (const double z : {-0.2, 0.2}) {
+    RigidBodyDesc box = dynamicBox(z < 0 ? "box-1" : "box-2", {-0.25, standing + half, z}, {half, half, half}, 400);
+    box.staticFriction = 0.5;
+    box.kineticFriction = 0.4;
+    o.bodies.push_back(box);
+  }
+  const double radius = 0.07;
+  RigidBodyDesc ball = ballBody({0.05, standing + radius, 0}, radius);
+  ball.density = 700;
+  ball.staticFriction = 0.5;
+  ball.kineticFriction = 0.4;
+  o.bodies.push_back(ball);
+  return o;
+}
+
+ClothGridSpec tableclothCloth(Index size) {
+  if (size < 2) throw std::invalid_argument("tableclothCloth: size must be >= 2, got " + std::to_string(size));
+  ClothGridSpec spec = flagSpec(size);  // rows along +x, columns along +z
+  spec.origin = {kClothLeft, tableclothTableTop() + kClothThickness, -0.5};
+  return spec;
+}
+
+std::vector<Index> tableclothGrip(Index size) {
+  // Particle (row r, column c) is r * size + c at origin + c spacing x + r spacing z: the
+  // +x edge is the last column.
+  std::vector<Index> grip;
+  for (Index r = 0; r < size; ++r) grip.push_back(r * size + size - 1);
+  return grip;
+}
+
+KinematicPath tableclothPull(double speed) {
+  if (!(std::isfinite(speed) && speed > 0))
+    throw std::invalid_argument("tableclothPull: speed must be finite and > 0 (m/s), got " + std::to_string(speed));
+  KinematicPath path;
+  path.velocity = {speed, 0, 0};
+  path.startTime = 0;
+  path.endTime = kPullDistance / speed;
+  return path;
+}
+
 }  // namespace weft

@@ -102,6 +102,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     if (options_.rigid.particleContacts && model_->particleCount() > 0) {
       coupling_ = std::make_unique<ParticleBodyContacts<S>>(rigid_->model(), model_->particleCount(),
                                                             options_.rigid.particleThickness);
+      rigid_->reserveSupports(model_->particleCount() * ParticleBodyContacts<S>::kContactsPerParticle);
       stepStartX_.resize(model_->particleCount(), 3);
     }
   }
@@ -211,7 +212,12 @@ StepStatus Simulation<S>::step() {
   StepStatus bodies;
   const auto start =
       options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-  executor_->run([&] { bodies = rigid_->step(options_.dt, *executor_); });
+  executor_->run([&] {
+    // Particles that something holds carry the bodies resting on them (support contacts).
+    if (coupling_ && options_.rigid.particleSupports)
+      coupling_->collectSupports(state_.x, state_.v, model_->inverseMass(), *rigid_, *executor_);
+    bodies = rigid_->step(options_.dt, *executor_);
+  });
   if (options_.profileEffects)
     rigidSeconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() * executor_->threadCount();

@@ -28,6 +28,20 @@
 // body's reaction acts from the next step on (the body's positions of this step are
 // kept): an explicit coupling, which is what keeps the two solvers independent. Nothing
 // is allocated after construction.
+//
+// Held particles. A light particle caught between a dynamic body and something that does
+// not yield (a cloth under a box on a table) cannot push the body back through that
+// explicit exchange: the box would press the particle into the table, the table push it
+// back into the box, and the box sink through the cloth. So before the bodies step,
+// collectSupports finds the particles that are held (pinned or kinematic, w = 0, or lying
+// within half a thickness of a static or kinematic body) and hands each held particle's
+// contact with a dynamic body (within the speculative distance) to the body solver as a
+// SupportContact: the body rests on the point and feels its friction, the point moving
+// with the particle's velocity, while what holds the particle takes the reaction. A box
+// on a tablecloth stays on it, and comes along with it when the cloth is pulled slowly
+// and stays behind when it is pulled fast (friction limits the impulse it can pass on:
+// the tablecloth trick). A held particle is not slowed by the body's friction: what holds
+// or drives it is assumed to be stronger.
 #pragma once
 
 #include <Eigen/Core>
@@ -59,6 +73,13 @@ class ParticleBodyContacts {
   ParticleBodyStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
                             RigidWorld& world, const Executor& exec);
 
+  /// Before the bodies step over [t, t + h]: the contacts of held particles (see above) at
+  /// (x, v) with the dynamic bodies of `world`, handed to world.setSupports (the world
+  /// must have room for particleCount x kContactsPerParticle: reserveSupports).
+  /// Returns how many.
+  Index collectSupports(const Vec3Array<S>& x, const Vec3Array<S>& v, const ScalarArray<S>& w, RigidWorld& world,
+                        const Executor& exec);
+
   double thickness() const { return thickness_; }
 
  private:
@@ -71,6 +92,9 @@ class ParticleBodyContacts {
   std::vector<Record> records_;                   // particleCount x kContactsPerParticle
   std::vector<Pose> start_, end_;                 // per piece
   std::vector<Eigen::Vector3d> boxMin_, boxMax_;  // per piece: swept box grown by the thickness
+  std::vector<SupportContact> supportSlots_;      // particleCount x kContactsPerParticle
+  std::vector<int> supportCount_;                 // per particle
+  std::vector<SupportContact> supports_;          // the step's list, in particle order
 };
 
 extern template class ParticleBodyContacts<float>;

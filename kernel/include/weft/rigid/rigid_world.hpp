@@ -103,6 +103,7 @@ struct RigidOptions {
   Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64
   // With particles in the same Simulation (rigid/particle_coupling.hpp):
   bool particleContacts = true;      // particles and bodies push each other
+  bool particleSupports = true;      // held particles carry the bodies on them (SupportContact)
   double particleThickness = 0.005;  // particle radius against bodies, m (> 0)
 };
 
@@ -163,14 +164,29 @@ RigidState initialRigidState(const RigidModel& model, const std::vector<RigidBod
 
 /// Findings of one step (or sums over steps).
 struct RigidStats {
-  std::int64_t candidatePairs = 0;  // broad phase pairs
-  std::int64_t touchingPairs = 0;   // pairs with a manifold
-  std::int64_t contacts = 0;        // manifold points
-  std::int64_t warmStarted = 0;     // of which started from the last step's impulses (same pair and feature)
-  std::int64_t witnessHits = 0;     // narrow phase queries answered by the cached witness
-  std::int64_t narrowQueries = 0;   // hull-hull queries in all
-  double maxPenetration = 0;        // deepest contact at the start of the step's solve, m (>= 0)
+  std::int64_t candidatePairs = 0;   // broad phase pairs
+  std::int64_t touchingPairs = 0;    // pairs with a manifold
+  std::int64_t contacts = 0;         // manifold points
+  std::int64_t warmStarted = 0;      // of which started from the last step's impulses (same pair and feature)
+  std::int64_t witnessHits = 0;      // narrow phase queries answered by the cached witness
+  std::int64_t narrowQueries = 0;    // hull-hull queries in all
+  std::int64_t supportContacts = 0;  // contacts with held points (SupportContact)
+  double maxPenetration = 0;         // deepest contact at the start of the step's solve, m (>= 0)
   void add(const RigidStats& s);
+};
+
+/// A contact of a dynamic body with a point that something else holds: a particle lying
+/// on a static or kinematic body, or a pinned one (rigid/particle_coupling.hpp gathers
+/// them before each step). The point does not yield along the normal and moves with
+/// `velocity`: the body rests on it and feels its friction (a tablecloth pulled from under
+/// a box), while what holds the point takes the reaction.
+struct SupportContact {
+  Index body = 0;                                      // a dynamic body
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();     // on the body's surface, world, m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitY();   // unit, from the support into the body
+  double separation = 0;                               // m (< 0: penetrating)
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // of the support point, m/s
+  std::uint64_t key = 0;  // the same point in consecutive steps (warm starting); increasing in a list
 };
 
 class RigidWorld {
@@ -192,6 +208,11 @@ class RigidWorld {
   const RigidState& stepStart() const { return backup_; }
   /// World pose of piece `p` in state `s`.
   Pose piecePose(Index p, const RigidState& s) const;
+  /// Room for `capacity` support contacts (allocates: call before stepping).
+  void reserveSupports(Index capacity);
+  /// The support contacts of the next step (copied; at most the reserved capacity, keys
+  /// increasing). They hold for one step.
+  void setSupports(const SupportContact* contacts, Index count);
   /// Applies an impulse (N s, world) at a world point to a dynamic body (others ignore it):
   /// how particles push bodies (rigid/particle_coupling.hpp).
   void applyImpulse(Index body, const Eigen::Vector3d& impulse, const Eigen::Vector3d& point);
@@ -258,6 +279,18 @@ class RigidWorld {
   std::vector<NarrowPhaseOutcome> outcomes_;
   std::vector<Constraint> constraints_, lastConstraints_;
   std::vector<Index> pairFirstConstraint_, lastPairFirstConstraint_;  // per pair, CSR into constraints
+  // A support contact as the solver sees it: the body is B, the held point A.
+  struct Support {
+    Index body = 0;
+    Eigen::Vector3d r;                                 // from the centre of mass to the point, m
+    std::array<Eigen::Vector3d, 3> direction;          // normal, tangent1, tangent2
+    std::array<Eigen::Vector3d, 3> cross, angular;     // r x d, I^-1 (r x d)
+    std::array<double, 3> mass{}, impulse{}, speed{};  // effective mass; accumulated N s; d . point velocity
+    double separation = 0, previousSeparation = 0, pushImpulse = 0, friction = 0;
+    std::uint64_t key = 0;
+  };
+  std::vector<SupportContact> supportInput_;
+  std::vector<Support> supports_, lastSupports_;
   struct Block {  // one manifold's points, solved together along the normal
     Index first = 0;
     int count = 0;
@@ -292,6 +325,10 @@ class RigidWorld {
   void solvePositions(double h);
   void integratePositions(double h, bool last);
   void applyRestitution();
+  void buildSupports(double h);
+  void solveSupports(bool backward);
+  double supportVelocity(const Support& s, int k) const;
+  void applySupport(const Support& s, int k, double lambda);
 };
 
 }  // namespace weft

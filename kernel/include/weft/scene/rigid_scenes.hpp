@@ -17,6 +17,11 @@
 // hammock        (with a cloth) a 1 kg ball of radius 0.12 m dropped from 0.5 m above the
 //                middle of a 1 m cloth pinned at its four corners (hammockCloth): the
 //                cloth catches it and both come to rest.
+// tablecloth-trick  (with a cloth) a table (static box, top at y = 0.75 m, 1.6 m x 1.2 m)
+//                under a 1 m cloth (tableclothCloth) on which stand two 0.16 m boxes and a
+//                ball of radius 0.07 m; the cloth's +x edge (tableclothGrip) is pulled
+//                along +x (tableclothPull) for 1.4 m: fast (4 m/s) the cloth slides out
+//                from under them and they stay; slowly (0.4 m/s) they come along.
 // Each returns the bodies (RigidOptions::bodies, default solver settings) and
 // rigidSceneTimeStep() the scenes' step.
 #pragma once
@@ -38,6 +43,16 @@ RigidOptions hammockBall();
 /// vertical axis; pins: its four corners (grid indices).
 ClothGridSpec hammockCloth(Index size = 24);
 std::vector<Index> hammockPins(Index size = 24);
+RigidOptions tableclothBodies();
+/// The tablecloth: size x size particles, 1 m, lying on the table (x in [-0.6, 0.4],
+/// z in [-0.5, 0.5], one particle thickness above the top).
+ClothGridSpec tableclothCloth(Index size = 32);
+/// The particles of the cloth's +x edge, the pulled ones (grid indices).
+std::vector<Index> tableclothGrip(Index size = 32);
+/// The pull: along +x at `speed` m/s (> 0) from t = 0 until the edge has moved 1.4 m.
+KinematicPath tableclothPull(double speed);
+/// Top of the tablecloth scene's table, m.
+constexpr double tableclothTableTop() { return 0.75; }
 
 /// The scenes' fixed step, s (1/60).
 constexpr double rigidSceneTimeStep() { return 1.0 / 60; }
