@@ -77,6 +77,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"exact", "ofg", "witness"}));
   cmd->add_option("--ofg-faces", run.ofgFaces, "Rigid bodies: faces per side the Opposing Face Geometry keeps (k >= 1)")
       ->check(CLI::Range(1, 1024));
+  cmd->add_option("--time-of-impact", run.timeOfImpact,
+                  "Rigid bodies: speculative (contacts before touching, one solve a step; default) | rollback "
+                  "(chunks cut at the time of impact, taken back when too deep)")
+      ->check(CLI::IsMember({"speculative", "rollback"}));
   CLI::Option* out = cmd->add_option("--out", run.out, "Write frames into this directory (created)");
   cmd->add_option("--format", run.format, "Frame format: obj | ply | cache (one frames.wcache); default obj")
       ->check(CLI::IsMember({"obj", "ply", "cache"}))

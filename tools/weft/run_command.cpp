@@ -177,6 +177,9 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
                                                              : weft::NarrowPhaseMethod::Witness;
   }
   if (o.ofgFaces) sim.rigid.narrowPhase.ofgFaces = *o.ofgFaces;
+  if (o.timeOfImpact)
+    sim.rigid.timeOfImpact =
+        *o.timeOfImpact == "rollback" ? weft::RigidTimeOfImpact::Rollback : weft::RigidTimeOfImpact::Speculative;
   if (o.out) spec.output.directory = *o.out;
   if (o.format) spec.output.format = *o.format;
   if (o.every) spec.output.every = *o.every;
@@ -313,8 +316,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["particle_body_contacts"] = sim.lastParticleBodyContacts().contacts;  // particles touching bodies, last step
       j["support_contacts"] = last.supportContacts;  // held particles carrying bodies, last step
       j["body_max_penetration"] = last.maxPenetration;
+      j["body_max_penetration_run"] = total.maxPenetration;  // deepest over the run
       j["body_energy"] = rigid->energy();
       j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
+      j["time_of_impact"] = weft::rigidTimeOfImpactName(rigid->options().timeOfImpact);
+      j["body_chunks"] = total.chunks;        // over the run (one per step unless rollback)
+      j["body_rollbacks"] = total.rollbacks;  // chunks cut or taken back, over the run
       j["narrow_queries"] = total.narrowQueries;
       j["witness_hit_rate"] = total.narrowQueries > 0
                                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
@@ -348,6 +355,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           << " contacts at the end (deepest " << rigid->lastStats().maxPenetration << " m), "
           << sim.lastParticleBodyContacts().contacts << " particle contacts, " << rigid->lastStats().supportContacts
           << " support contacts, narrow phase " << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method)
+          << ", time of impact " << weft::rigidTimeOfImpactName(rigid->options().timeOfImpact) << " (" << total.chunks
+          << " chunks, " << total.rollbacks << " cut or taken back)"
           << ", witness hit rate "
           << (total.narrowQueries > 0
                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)

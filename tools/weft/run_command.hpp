@@ -23,8 +23,9 @@ struct RunOptions {
   std::optional<std::string> precision;
   std::optional<int> threads;
   std::optional<std::string> strategy;
-  std::optional<std::string> narrowPhase;  // rigid bodies: exact | ofg | witness
-  std::optional<int> ofgFaces;             // rigid bodies: k of the Opposing Face Geometry
+  std::optional<std::string> narrowPhase;   // rigid bodies: exact | ofg | witness
+  std::optional<int> ofgFaces;              // rigid bodies: k of the Opposing Face Geometry
+  std::optional<std::string> timeOfImpact;  // rigid bodies: speculative | rollback
   bool json = false;
   bool progress = true;  // a progress bar when stdout is a terminal and the run is long
   std::optional<std::string> out;

@@ -71,10 +71,26 @@ RigidShapeDesc readShape(const Reader& r, const Json& e, const std::string& f) {
 
 RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& f) {
   r.object(j, f,
-           {"bodies", "narrow_phase", "ofg_faces", "substeps", "velocity_iterations", "position_iterations",
-            "speculative_distance", "continuous", "linear_slop", "penetration_rate", "max_push_velocity",
-            "restitution_threshold", "static_speed", "max_pairs", "particle_contacts", "particle_supports",
-            "particle_thickness"});
+           {"bodies",
+            "narrow_phase",
+            "ofg_faces",
+            "substeps",
+            "velocity_iterations",
+            "position_iterations",
+            "speculative_distance",
+            "continuous",
+            "linear_slop",
+            "penetration_rate",
+            "max_push_velocity",
+            "restitution_threshold",
+            "static_speed",
+            "max_pairs",
+            "particle_contacts",
+            "particle_supports",
+            "particle_thickness",
+            "time_of_impact",
+            "rollback_penetration",
+            "max_halvings"});
   RigidOptions o;
   const std::string method = r.choice(j, f, "narrow_phase", "witness", {"exact", "ofg", "witness"});
   o.narrowPhase.method = method == "exact" ? NarrowPhaseMethod::Exact
@@ -96,6 +112,11 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   o.maxPairs = static_cast<Index>(r.integer(j, f, "max_pairs", 0, 0, Index(1) << 28));
   o.particleContacts = r.boolean(j, f, "particle_contacts", o.particleContacts);
   o.particleSupports = r.boolean(j, f, "particle_supports", o.particleSupports);
+  o.timeOfImpact = r.choice(j, f, "time_of_impact", "speculative", {"speculative", "rollback"}) == "rollback"
+                       ? RigidTimeOfImpact::Rollback
+                       : RigidTimeOfImpact::Speculative;
+  o.rollbackPenetration = r.number(j, f, "rollback_penetration", o.rollbackPenetration, 0, false, " m");
+  o.maxHalvings = static_cast<int>(r.integer(j, f, "max_halvings", o.maxHalvings, 0, 30));
   o.particleThickness = r.number(j, f, "particle_thickness", o.particleThickness, 0, false, " m");
   const std::string fb = Reader::join(f, "bodies");
   if (!j.contains("bodies")) r.fail(fb, "is required: a non-empty array of rigid bodies");

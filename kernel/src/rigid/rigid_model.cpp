@@ -54,7 +54,20 @@ void RigidStats::add(const RigidStats& s) {
   witnessHits += s.witnessHits;
   narrowQueries += s.narrowQueries;
   supportContacts += s.supportContacts;
+  chunks += s.chunks;
+  rollbacks += s.rollbacks;
+  halvingLimitHits += s.halvingLimitHits;
   maxPenetration = std::max(maxPenetration, s.maxPenetration);
+}
+
+const char* rigidTimeOfImpactName(RigidTimeOfImpact mode) {
+  switch (mode) {
+    case RigidTimeOfImpact::Speculative:
+      return "speculative";
+    case RigidTimeOfImpact::Rollback:
+      return "rollback";
+  }
+  return "unknown";
 }
 
 void validateRigidOptions(const RigidOptions& o) {
@@ -76,6 +89,11 @@ void validateRigidOptions(const RigidOptions& o) {
   require(std::isfinite(o.particleThickness) && o.particleThickness > 0, r + "particleThickness", "finite and > 0 (m)",
           text(o.particleThickness));
   require(o.maxPairs >= 0, r + "maxPairs", ">= 0 (0 = automatic)", std::to_string(o.maxPairs));
+  require(std::isfinite(o.rollbackPenetration) && o.rollbackPenetration > 0, r + "rollbackPenetration",
+          "finite and > 0 (m)", text(o.rollbackPenetration));
+  require(o.maxHalvings >= 0 && o.maxHalvings <= 30, r + "maxHalvings", "in [0, 30]", std::to_string(o.maxHalvings));
+  require(o.timeOfImpact == RigidTimeOfImpact::Speculative || o.timeOfImpact == RigidTimeOfImpact::Rollback,
+          r + "timeOfImpact", "speculative or rollback", std::to_string(static_cast<int>(o.timeOfImpact)));
   require(o.narrowPhase.ofgFaces >= 1, r + "narrowPhase.ofgFaces", ">= 1", std::to_string(o.narrowPhase.ofgFaces));
   for (std::size_t b = 0; b < o.bodies.size(); ++b) {
     const RigidBodyDesc& d = o.bodies[b];

@@ -83,6 +83,9 @@ void RigidWorld::buildConstraints(double h) {
     const Mat3& iib = invInertiaWorld_[b];
     for (int p = 0; p < man.pointCount; ++p) {
       const ContactPoint& cp = man.points[p];
+      // Rollback: only touching points are solved (the chunk is cut so that the others
+      // cannot get deeper than the limit within it).
+      if (rollback() && cp.separation > options_.linearSlop) continue;
       Constraint c;
       c.bodyA = a;
       c.bodyB = b;

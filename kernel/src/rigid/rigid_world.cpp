@@ -79,6 +79,7 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   for (auto* v : {&pairs_, &lastPairs_}) v->reserve(cap);
   for (auto* v : {&caches_, &lastCaches_}) v->reserve(cap);
   manifolds_.reserve(cap);
+  if (rollback()) endDepth_.reserve(cap);
   margins_.reserve(cap);
   outcomes_.reserve(cap);
   constraints_.reserve(4 * cap);
@@ -102,6 +103,7 @@ void RigidWorld::setState(const RigidState& s) {
   state_ = s;
   for (auto& q : state_.q) q.normalize();
   backup_ = state_;
+  stepBegin_ = state_;
   // Kinematic bodies: where the path starts them (time 0), so that later positions are
   // computed from the path and never accumulate rounding.
   for (std::size_t b = 0; b < n; ++b) {
@@ -184,21 +186,75 @@ StepStatus RigidWorld::fail(StepCode code, Index body, double value) {
   s.code = code;
   s.body = body;
   s.value = value;
-  s.time = backup_.time;
-  state_ = backup_;
+  s.time = stepStart().time;
+  state_ = stepStart();
   supportInput_.clear();
   return s;
 }
 
+namespace {
+/// Copy-assignment into equally sized vectors: no allocation after the first time.
+void copyState(const RigidState& from, RigidState& to) {
+  to.x = from.x;
+  to.q = from.q;
+  to.v = from.v;
+  to.w = from.w;
+  to.time = from.time;
+}
+}  // namespace
+
 StepStatus RigidWorld::step(double h, const Executor& executor) {
+  double shorter = 0;
+  if (!rollback()) {
+    const StepStatus s = stepChunk(h, executor, true, shorter);
+    supportInput_.clear();  // supports hold for one step
+    if (!s.ok()) return s;
+    last_.chunks = 1;
+    total_.add(last_);
+    return s;
+  }
+  // The original design's loop: chunks of the step, each cut before it is taken while a
+  // pair apart could meet too deep within it, or taken back after it ended too deep; the
+  // next chunk may be twice as long again. Chunk lengths are h / 2^k, so they add up to h.
+  copyState(state_, stepBegin_);
+  RigidStats step;
+  const double shortest = std::ldexp(h, -options_.maxHalvings);
+  double done = 0, chunk = h;
+  while (done < h) {
+    const double length = std::min(chunk, h - done);
+    const bool force = length <= shortest;
+    const StepStatus s = stepChunk(length, executor, force, shorter);
+    if (!s.ok()) {
+      supportInput_.clear();
+      return s;  // the state is where the step started
+    }
+    if (shorter > 0 && !force) {
+      ++step.rollbacks;
+      chunk = length / 2;
+      while (chunk > shorter && chunk > shortest) chunk /= 2;
+      chunk = std::max(chunk, shortest);
+      continue;
+    }
+    if (shorter > 0) ++last_.halvingLimitHits;
+    ++last_.chunks;
+    const std::int64_t rollbacks = step.rollbacks;
+    step.add(last_);
+    step.rollbacks = rollbacks;
+    done += length;
+    chunk = std::min(h, 2 * length);
+  }
+  state_.time = stepBegin_.time + h;
+  supportInput_.clear();
+  last_ = step;
+  total_.add(last_);
+  return {};
+}
+
+StepStatus RigidWorld::stepChunk(double h, const Executor& executor, bool force, double& shorter) {
   const RigidModel& m = *model_;
   const Index n = m.bodyCount();
-  // Copy-assignment into equally sized vectors: no allocation after the first step.
-  backup_.x = state_.x;
-  backup_.q = state_.q;
-  backup_.v = state_.v;
-  backup_.w = state_.w;
-  backup_.time = state_.time;
+  shorter = 0;
+  copyState(state_, backup_);
   last_ = RigidStats{};
 
   // 1. Velocities.
@@ -233,6 +289,28 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
   if (nonFinite >= 0) return fail(StepCode::NonFinite, nonFinite, state_.x[nonFinite].sum());
   if (overflow) return fail(StepCode::CapacityExceeded, -1, static_cast<double>(capacityPairs_));
   narrowPhase(h, executor);
+  if (rollback()) {
+    // The time of impact: a pair apart (its nearest point beyond the slop) closes by at
+    // most its motion bound over the chunk (the margin's growth); the chunk may be as long
+    // as lets the nearest such pair end no deeper than rollbackPenetration.
+    double longest = h;
+    for (std::size_t k = 0; k < manifolds_.size(); ++k) {
+      const ContactManifold& man = manifolds_[k];
+      if (man.pointCount == 0) continue;
+      double nearest = man.points[0].separation;
+      for (int p = 1; p < man.pointCount; ++p) nearest = std::min(nearest, man.points[p].separation);
+      const double rate = (margins_[k] - options_.speculativeDistance) / h;  // m/s
+      if (nearest <= options_.linearSlop || rate <= 0) continue;
+      longest = std::min(longest, (nearest + options_.rollbackPenetration) / rate);
+    }
+    if (longest < h) {
+      shorter = longest;
+      if (!force) {
+        state_ = backup_;
+        return {};
+      }
+    }
+  }
 
   // 4-5. Substeps (Box2D v3's soft step): the contact set of the step, each substep warm
   // started, solved, its penetration recovered by split impulses, positions integrated and
@@ -258,8 +336,18 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
     integratePositions(hs, sub == substeps - 1);
     advanceSeparations(hs);
   }
-  lastSubstep_ = hs;
   applyRestitution();
+  if (rollback()) {
+    // Taken back when a pair ended deeper than the limit and than it started.
+    if (endsTooDeep(executor)) {
+      shorter = h / 2;
+      if (!force) {
+        state_ = backup_;
+        return {};
+      }
+    }
+  }
+  lastSubstep_ = hs;
   state_.time = backup_.time + h;
 
   for (Index b = 0; b < n; ++b) {
@@ -276,15 +364,13 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
   std::swap(constraints_, lastConstraints_);
   std::swap(pairFirstConstraint_, lastPairFirstConstraint_);
   std::swap(supports_, lastSupports_);
-  supportInput_.clear();  // supports hold for one step
-  total_.add(last_);
   return {};
 }
 
 void RigidWorld::broadPhase(double h, const Executor& executor, bool& overflow, Index& nonFinite) {
   const RigidModel& m = *model_;
   const Index pieces = m.pieceCount();
-  const bool sweep = options_.continuous;
+  const bool sweep = options_.continuous || rollback();
   const double grow = options_.speculativeDistance;
   executor.parallelFor(pieces, 64, [&](Index begin, Index end) {
     for (Index i = begin; i < end; ++i) {
@@ -344,6 +430,46 @@ void RigidWorld::broadPhase(double h, const Executor& executor, bool& overflow, 
   last_.candidatePairs = static_cast<std::int64_t>(pairs_.size());
 }
 
+bool RigidWorld::endsTooDeep(const Executor& executor) {
+  // The narrow phase again at the end of the chunk (a copy of each pair's cache: the
+  // witness answers as the exact test does, cheaply for pairs that moved little); a
+  // rotating body can meet another with a point its start manifold did not hold.
+  const RigidModel& m = *model_;
+  const Index count = static_cast<Index>(pairs_.size());
+  endDepth_.resize(static_cast<std::size_t>(count));  // within the reserved capacity
+  executor.parallelFor(count, 16, [&](Index begin, Index end) {
+    for (Index k = begin; k < end; ++k) {
+      const Pair pair = pairs_[k];
+      const RigidPiece& pa = m.pieces[pair.a];
+      const RigidPiece& pb = m.pieces[pair.b];
+      const Pose poseA = piecePose(pair.a, state_), poseB = piecePose(pair.b, state_);
+      ContactManifold out;
+      using Kind = RigidShapeDesc::Kind;
+      if (pa.kind == Kind::Sphere && pb.kind == Kind::Sphere) {
+        sphereSphere(poseA.position, pa.radius, poseB.position, pb.radius, 0, out);
+      } else if (pa.kind == Kind::Sphere) {
+        collideSphereHull(poseA.position, pa.radius, m.hulls[pb.hull], poseB, 0, out);
+      } else if (pb.kind == Kind::Sphere) {
+        collideSphereHull(poseB.position, pb.radius, m.hulls[pa.hull], poseA, 0, out);
+      } else {
+        PairCache cache = caches_[k];
+        collideHulls(m.hulls[pa.hull], poseA, m.hulls[pb.hull], poseB, 0, options_.narrowPhase, cache, out);
+      }
+      double depth = 0;
+      for (int p = 0; p < out.pointCount; ++p) depth = std::max(depth, -out.points[p].separation);
+      endDepth_[k] = depth;
+    }
+  });
+  for (Index k = 0; k < count; ++k) {
+    if (endDepth_[k] <= options_.rollbackPenetration) continue;
+    double start = 0;
+    const ContactManifold& man = manifolds_[k];
+    for (int p = 0; p < man.pointCount; ++p) start = std::max(start, -man.points[p].separation);
+    if (endDepth_[k] > start) return true;
+  }
+  return false;
+}
+
 void RigidWorld::narrowPhase(double h, const Executor& executor) {
   const RigidModel& m = *model_;
   const Index count = static_cast<Index>(pairs_.size());
@@ -366,7 +492,7 @@ void RigidWorld::narrowPhase(double h, const Executor& executor) {
         caches_[k] = PairCache{};
       }
       double margin = options_.speculativeDistance;
-      if (options_.continuous) {
+      if (options_.continuous || rollback()) {
         const Index a = pa.body, b = pb.body;
         margin +=
             h * ((state_.v[b] - state_.v[a]).norm() + state_.w[a].norm() * (pa.centre.norm() + pa.boundingRadius) +

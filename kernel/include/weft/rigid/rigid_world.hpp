@@ -87,6 +87,17 @@ struct RigidBodyDesc {
   KinematicPath path;            // Kinematic: how it moves (its rotation about path.center)
 };
 
+/// How bodies that approach fast meet without passing through each other.
+/// Speculative: contacts are made before the bodies touch (within the speculative distance
+/// and, with `continuous`, the pair's motion over the step) and the solver lets each gap
+/// close and no more: one step, whatever the speed. Rollback: the original design's loop
+/// for bodies, as the particles do it: only touching contacts are solved; a step is
+/// advanced in chunks, a chunk is cut (halved) before it is taken while a pair that is
+/// apart could approach deeper than `rollbackPenetration` within it (the time of impact,
+/// bisected), and taken back and halved when a contact ends deeper than that.
+enum class RigidTimeOfImpact { Speculative, Rollback };
+const char* rigidTimeOfImpactName(RigidTimeOfImpact mode);
+
 struct RigidOptions {
   std::vector<RigidBodyDesc> bodies;  // none: no rigid bodies, nothing constructed, nothing paid
   NarrowPhaseOptions narrowPhase;
@@ -101,6 +112,9 @@ struct RigidOptions {
   double restitutionThreshold = 0.5;  // m/s: slower impacts do not bounce
   double staticSpeed = 0.01;          // m/s: tangential speed under which static friction applies
   Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64
+  RigidTimeOfImpact timeOfImpact = RigidTimeOfImpact::Speculative;
+  double rollbackPenetration = 0.005;  // Rollback: deepest penetration a chunk may end with, m (> 0)
+  int maxHalvings = 12;                // Rollback: shortest chunk step / 2^maxHalvings (0..30)
   // With particles in the same Simulation (rigid/particle_coupling.hpp):
   bool particleContacts = true;      // particles and bodies push each other
   bool particleSupports = true;      // held particles carry the bodies on them (SupportContact)
@@ -164,14 +178,17 @@ RigidState initialRigidState(const RigidModel& model, const std::vector<RigidBod
 
 /// Findings of one step (or sums over steps).
 struct RigidStats {
-  std::int64_t candidatePairs = 0;   // broad phase pairs
-  std::int64_t touchingPairs = 0;    // pairs with a manifold
-  std::int64_t contacts = 0;         // manifold points
-  std::int64_t warmStarted = 0;      // of which started from the last step's impulses (same pair and feature)
-  std::int64_t witnessHits = 0;      // narrow phase queries answered by the cached witness
-  std::int64_t narrowQueries = 0;    // hull-hull queries in all
-  std::int64_t supportContacts = 0;  // contacts with held points (SupportContact)
-  double maxPenetration = 0;         // deepest contact at the start of the step's solve, m (>= 0)
+  std::int64_t candidatePairs = 0;    // broad phase pairs
+  std::int64_t touchingPairs = 0;     // pairs with a manifold
+  std::int64_t contacts = 0;          // manifold points
+  std::int64_t warmStarted = 0;       // of which started from the last step's impulses (same pair and feature)
+  std::int64_t witnessHits = 0;       // narrow phase queries answered by the cached witness
+  std::int64_t narrowQueries = 0;     // hull-hull queries in all
+  std::int64_t supportContacts = 0;   // contacts with held points (SupportContact)
+  std::int64_t chunks = 0;            // Rollback: chunks taken (1 per step otherwise)
+  std::int64_t rollbacks = 0;         // Rollback: chunks cut before or taken back after solving
+  std::int64_t halvingLimitHits = 0;  // Rollback: chunks taken at the shortest length though too deep
+  double maxPenetration = 0;          // deepest contact at the start of the step's solve, m (>= 0)
   void add(const RigidStats& s);
 };
 
@@ -203,9 +220,9 @@ class RigidWorld {
   StepStatus step(double h, const Executor& executor);
 
   /// Puts the state back where the last step started (the caller's step failed elsewhere).
-  void undoStep() { state_ = backup_; }
+  void undoStep() { state_ = stepStart(); }
   /// The state at the start of the last step (where the bodies came from).
-  const RigidState& stepStart() const { return backup_; }
+  const RigidState& stepStart() const { return rollback() ? stepBegin_ : backup_; }
   /// World pose of piece `p` in state `s`.
   Pose piecePose(Index p, const RigidState& s) const;
   /// Room for `capacity` support contacts (allocates: call before stepping).
@@ -263,7 +280,9 @@ class RigidWorld {
     const Eigen::Vector3d& direction(int k) const { return k == 0 ? normal : k == 1 ? tangent1 : tangent2; }
   };
   std::shared_ptr<const RigidModel> model_;
-  RigidState state_, backup_;
+  RigidState state_, backup_;  // backup_: where the current chunk started
+  RigidState stepBegin_;       // Rollback: where the step started
+  bool rollback() const { return options_.timeOfImpact == RigidTimeOfImpact::Rollback; }
   RigidOptions options_;
   Eigen::Vector3d gravity_;
   RigidStats last_, total_;
@@ -275,6 +294,7 @@ class RigidWorld {
   std::vector<Pair> pairs_, lastPairs_;
   std::vector<PairCache> caches_, lastCaches_;
   std::vector<ContactManifold> manifolds_;
+  std::vector<double> endDepth_;  // Rollback: per pair, how deep it ends the chunk, m
   std::vector<double> margins_;
   std::vector<NarrowPhaseOutcome> outcomes_;
   std::vector<Constraint> constraints_, lastConstraints_;
@@ -308,8 +328,14 @@ class RigidWorld {
   std::vector<Eigen::Vector3d> targetX_;  // per body: kinematic position at the end of the step
   std::vector<Eigen::Quaterniond> targetQ_;
   StepStatus fail(StepCode code, Index body, double value);
+  /// One chunk of length h. Rollback mode: `shorter` > 0 on return when the chunk must be
+  /// cut (the largest length that would do, or h / 2 after a too deep end) and the state
+  /// is as it was; `force` takes it whatever it finds.
+  StepStatus stepChunk(double h, const Executor& executor, bool force, double& shorter);
   void broadPhase(double h, const Executor& executor, bool& overflow, Index& nonFinite);
   void narrowPhase(double h, const Executor& executor);
+  /// Rollback: whether a pair ends the chunk deeper than the limit and than it started.
+  bool endsTooDeep(const Executor& executor);
   void buildConstraints(double h);
   void warmStart();
   void solveVelocities(bool backward);
