@@ -543,5 +543,25 @@ TEST(ModelNames, SpringClassNames) {
   EXPECT_STREQ(springClassName(SpringClass::Bend), "bend");
 }
 
+TEST(Energy, KineticSpringAndGravityOfAKnownState) {
+  // Two particles 1 m apart on a spring of rest length 0.5 m and stiffness 100 N/m; the
+  // lower one (2 kg) moves at 3 m/s, the upper one (1 kg) is pinned at y = 2.
+  ModelBuilder<double> b;
+  const Index top = b.addParticle({0, 2, 0}, 1.0);
+  const Index bob = b.addParticle({0, 1, 0}, 2.0);
+  b.addSpring(top, bob, {100, 0.1}, SpringClass::Structural, 0.5);
+  b.pin(top);
+  ModelAndState<double> m = b.build();
+  m.state.v(bob, 0) = 3;
+  const Energy e = energy(m.model, m.state, {0, -9.81, 0});
+  EXPECT_DOUBLE_EQ(e.kinetic, 0.5 * 2 * 9);
+  EXPECT_DOUBLE_EQ(e.spring, 0.5 * 100 * 0.25);
+  EXPECT_DOUBLE_EQ(e.gravity, 2 * 9.81 * 1);  // the pinned particle's potential is not counted
+  EXPECT_DOUBLE_EQ(e.total(), e.kinetic + e.spring + e.gravity);
+  State<double> wrong = m.state;
+  wrong.x.resize(1, 3);
+  EXPECT_THROW(energy(m.model, wrong, {0, -9.81, 0}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace weft::test

@@ -14,7 +14,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "energy.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
@@ -245,7 +244,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const std::string hash =
       hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
   const auto byClass = model.springCountByClass();
-  const Energy e = energy(model, state, options.gravity);
+  const weft::Energy e = weft::energy(model, state, options.gravity);
   const double lowest = model.particleCount() > 0 ? static_cast<double>(state.x.col(1).minCoeff()) : 0.0;
   const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
   const weft::SceneEffectTimes times = sim.effectTimes();

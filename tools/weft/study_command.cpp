@@ -24,7 +24,6 @@
 #include <optional>
 #include <sstream>
 
-#include "energy.hpp"
 #include "weft/weft.hpp"
 
 #ifndef WEFT_SOURCE_DIR
@@ -103,7 +102,7 @@ RunResult run(const SceneDef& scene, IntegratorKind kind, double dt, const weft:
   r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   r.x = sim.state().x.template cast<double>();
   r.v = sim.state().v.template cast<double>();
-  r.energy = energy(sim.model(), sim.state(), scene.gravity).total();
+  r.energy = weft::energy(sim.model(), sim.state(), scene.gravity).total();
   r.work = sim.totalWork();
   r.hash = weft::stateHash(sim.state());
   r.steps = sim.stepCount();
@@ -264,7 +263,7 @@ int runStudy(const StudyOptions& o) {
                    << " |\n";
     const weft::ModelAndState<double> model = build<double>(scene);
     const double omegaMax = weft::maxAngularFrequency(model.model);
-    const double energy0 = energy(model.model, model.state, scene.gravity).total();
+    const double energy0 = weft::energy(model.model, model.state, scene.gravity).total();
     const double energyMargin = std::max(std::abs(energy0), std::abs(ref.energy - energy0));
     for (const IntegratorKind kind : weft::kAllIntegrators) {
       for (const bool isFloat : {false, true}) {

@@ -13,6 +13,7 @@
 #include "weft/model/builder.hpp"
 #include "weft/model/builders.hpp"
 #include "weft/model/cloth_mesh.hpp"
+#include "weft/model/energy.hpp"
 #include "weft/model/triangle_mesh.hpp"
 #include "weft/rigid/convex_hull.hpp"
 #include "weft/rigid/mass_properties.hpp"

@@ -28,7 +28,15 @@ Vec3d rotate(const KinematicPath& path, const Vec3d& r, double angle) {
 }
 
 std::string text(const Vec3d& v) {
-  return "(" + std::to_string(v.x) + ", " + std::to_string(v.y) + ", " + std::to_string(v.z) + ")";
+  // Appended piece by piece (a chain of operator+ on temporaries trips GCC 12's -Wrestrict).
+  std::string out = "(";
+  out += std::to_string(v.x);
+  out += ", ";
+  out += std::to_string(v.y);
+  out += ", ";
+  out += std::to_string(v.z);
+  out += ")";
+  return out;
 }
 
 }  // namespace

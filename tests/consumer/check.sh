@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Builds and runs tests/consumer against weft as a user would get it:
+#   bash tests/consumer/check.sh BUILD_DIR [--subdirectory]
+# 1. `cmake --install BUILD_DIR` into a temporary prefix;
+# 2. find_package(weft) with only the kernel, assimp and nlohmann-json made unfindable;
+# 3. find_package(weft COMPONENTS io);
+# 4. the kernel program through pkg-config, no CMake;
+# 5. with --subdirectory, add_subdirectory() of this source tree (compiles weft again).
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+source_dir="$(cd "$here/../.." && pwd)"
+build="$(cd "$1" && pwd)"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+jobs="${WEFT_JOBS:-2}"
+
+echo "-- install into $work/prefix"
+cmake --install "$build" --prefix "$work/prefix" >/dev/null
+
+echo "-- find_package(weft): the kernel alone"
+cmake -S "$here" -B "$work/kernel" -DCONSUMER_IO=OFF -DCMAKE_PREFIX_PATH="$work/prefix" \
+  -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON -DCMAKE_DISABLE_FIND_PACKAGE_nlohmann_json=ON >/dev/null
+cmake --build "$work/kernel" -j"$jobs" >/dev/null
+"$work/kernel/consumer"
+
+echo "-- find_package(weft COMPONENTS io)"
+cmake -S "$here" -B "$work/io" -DCMAKE_PREFIX_PATH="$work/prefix" >/dev/null
+cmake --build "$work/io" -j"$jobs" >/dev/null
+"$work/io/consumer"
+"$work/io/consumer_io"
+
+echo "-- pkg-config weft"
+libdir="$(ls -d "$work"/prefix/lib*/pkgconfig | head -n1)"
+# shellcheck disable=SC2046
+g++ -O2 "$here/main.cpp" -o "$work/consumer_pc" $(PKG_CONFIG_PATH="$libdir" pkg-config --cflags --libs weft)
+"$work/consumer_pc"
+
+if [ "${2:-}" = "--subdirectory" ]; then
+  echo "-- add_subdirectory(weft)"
+  cmake -S "$here" -B "$work/sub" -DWEFT_SOURCE="$source_dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$work/sub" -j"$jobs" >/dev/null
+  "$work/sub/consumer"
+  "$work/sub/consumer_io"
+fi
+echo "-- consumers: ok"
