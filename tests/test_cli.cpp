@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <weft/io/scene.hpp>
 
 #include "support/test_support.hpp"
 
@@ -336,13 +337,48 @@ INSTANTIATE_TEST_SUITE_P(
                       BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
                       BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},
                       BadOption{"flag --out weft_bad_out --every 0", "--every", "0"},
-                      BadOption{"flag --every 2", "--every", "--out"}),
+                      BadOption{"flag --every 2", "--every", "--out"},
+                      BadOption{"flag --steps -5", "--steps", "must be >= 0, got -5"},
+                      BadOption{"flag --szie 32", "--szie", "did you mean --size?"},
+                      BadOption{"flag --time-of-impact later", "--time-of-impact", "later"},
+                      BadOption{"flag rope", "unexpected argument", "rope"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)
         if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
       return name;
     });
+
+TEST(Cli, MessagesAreShortAndSayWhatHappened) {
+  // A range without a 300-digit bound, one "weft: " prefix, a reason for a bad --out.
+  const CliRun steps = weft("run flag --steps -5", true);
+  EXPECT_LT(steps.output.size(), 200u) << steps.output;
+  const CliRun out = weft("run flag --steps 1 --out /proc/weft-no-such-dir/x", true);
+  EXPECT_NE(out.exitCode, 0);
+  EXPECT_EQ(out.output.find("weft: weft:"), std::string::npos) << out.output;
+  EXPECT_NE(out.output.find("/proc/weft-no-such-dir/x"), std::string::npos) << out.output;
+  const CliRun study = weft("study --quick --no-plot --out /proc/weft-no-such-dir", true);
+  EXPECT_EQ(study.exitCode, 2) << study.output;
+  EXPECT_NE(study.output.find("cannot create the output directory '/proc/weft-no-such-dir'"), std::string::npos)
+      << study.output;
+  EXPECT_EQ(study.output.find("filesystem error"), std::string::npos) << study.output;
+}
+
+TEST(Cli, MoreThreadsThanTheMachineRunsAreReportedAsRun) {
+  const CliRun r = weft("run rope --steps 2 --threads 999", true);
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.find("999 thread(s)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("(999 asked for: the most this machine runs)"), std::string::npos) << r.output;
+}
+
+TEST(Cli, HelpNamesEveryBuiltInSceneAndSceneFiles) {
+  const CliRun r = weft("run --help", true);
+  EXPECT_EQ(r.exitCode, 0);
+  for (const std::string& name : builtinSceneNames()) EXPECT_NE(r.output.find(name), std::string::npos) << name;
+  EXPECT_NE(r.output.find("JSON scene file"), std::string::npos);
+  const CliRun top = weft("--help", true);
+  EXPECT_NE(top.output.find("scene file"), std::string::npos) << top.output;
+}
 
 TEST(Cli, NoSubcommandIsAnError) {
   const CliRun r = weft("", true);

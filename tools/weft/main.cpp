@@ -1,6 +1,7 @@
 // The `weft` command line. Parsing is CLI11's (Debian libcli11-dev); every bad option
 // exits non-zero with a message naming the option and the value.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -11,6 +12,7 @@
 #include "run_command.hpp"
 #include "study_command.hpp"
 #include "weft/integrate/integrator.hpp"
+#include "weft/io/scene.hpp"
 
 namespace {
 // CLI::PositiveNumber lets "nan" through: a time step or a tolerance must be a finite
@@ -34,23 +36,89 @@ CLI::Validator finiteNumber(bool allowZero) {
 }
 const CLI::Validator finitePositive = finiteNumber(false);
 const CLI::Validator finiteNonNegative = finiteNumber(true);
+
+// CLI::NonNegativeNumber's message prints the range up to DBL_MAX (300 digits).
+const CLI::Validator nonNegativeInteger(
+    [](std::string& text) -> std::string {
+      try {
+        size_t used = 0;
+        const long long value = std::stoll(text, &used);
+        if (used != text.size()) return "must be a whole number >= 0, got " + text;
+        if (value < 0) return "must be >= 0, got " + text;
+      } catch (const std::exception&) {
+        return "must be a whole number >= 0, got " + text;
+      }
+      return {};
+    },
+    "INTEGER >= 0");
+
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+/// Arguments a subcommand did not take: each named, an unknown option with the closest
+/// one it has (a typo such as --szie for --size).
+int reportExtras(const CLI::App& cmd, const std::vector<std::string>& extras) {
+  bool afterUnknownOption = false;
+  for (const std::string& extra : extras) {
+    std::string message = "weft " + cmd.get_name() + ": ";
+    const bool option = extra.rfind("-", 0) == 0;
+    if (!option && afterUnknownOption) {  // the value of the unknown option just reported
+      afterUnknownOption = false;
+      continue;
+    }
+    afterUnknownOption = option && extra.find('=') == std::string::npos;
+    if (option) {
+      const std::string name = extra.substr(0, extra.find('='));
+      message += "unknown option '" + name + "'";
+      std::string best;
+      std::size_t bestDistance = 3;  // suggest only close matches
+      for (const CLI::Option* option : cmd.get_options()) {
+        for (const std::string& known : option->get_lnames()) {
+          const std::size_t d = editDistance(name, "--" + known);
+          if (d < bestDistance) {
+            bestDistance = d;
+            best = "--" + known;
+          }
+        }
+      }
+      if (!best.empty()) message += " (did you mean " + best + "?)";
+    } else {
+      message += "unexpected argument '" + extra + "' (one scene per run)";
+    }
+    std::cerr << message << "\n";
+  }
+  std::cerr << "Run with --help for more information.\n";
+  return 2;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"weft — multithreaded cloth and collision kernel"};
   app.require_subcommand(1);
   weftcli::RunOptions run;
-  CLI::App* cmd = app.add_subcommand("run", "Run a built-in scene and print its figures");
+  CLI::App* cmd = app.add_subcommand("run", "Run a built-in scene or a JSON scene file and print its figures");
+  cmd->allow_extras();  // reported below, with the closest option to a misspelt one
+  std::string names;
+  for (const std::string& name : weft::builtinSceneNames()) names += (names.empty() ? "" : ", ") + name;
   cmd->add_option("scene", run.scene,
-                  "A built-in scene (flag: 64 x 64 cloth pinned at two corners; rope; flag-wind: a flag on a pole "
-                  "in gusty wind; hanging-cloth: cloth on a turning bar; drape: cloth onto a sphere; drape-mesh: cloth "
-                  "onto an imported torus mesh; rope-on-pegs: a rope "
-                  "across three capsules; fast-ball: 100 m/s at a one-triangle wall) or a JSON scene file "
-                  "(docs/scenes.md). "
-                  "Options given below override the scene's values");
+                  "A built-in scene (" + names +
+                      "; docs/scenes.md says what each is) or a JSON scene file (docs/scenes.md). Options given "
+                      "below override the scene's values");
   cmd->add_option("--size", run.size, "Built-in scenes: grid side (cloth) or particle count (rope); default 64")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
-  cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(nonNegativeInteger);
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
   std::vector<std::string> integrators;
   for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
@@ -111,6 +179,7 @@ int main(int argc, char** argv) {
     // --help exits 0.
     return app.exit(e) == 0 ? 0 : 2;
   }
+  if (cmd->parsed() && !cmd->remaining().empty()) return reportExtras(*cmd, cmd->remaining());
   try {
     if (studyCmd->parsed()) return weftcli::runStudy(study);
     return weftcli::runScene(run);

@@ -342,7 +342,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << byClass[2] << "), " << model.triangleCount() << " triangles, " << spec.bodies.size() << " bodies\n";
     for (const std::string& report : assembled.meshReports) out << "  mesh         " << report << "\n";
     out << "  integrator   " << weft::integratorName(options.integrator) << ", " << precision << ", dt " << options.dt
-        << " s, " << sim.threadCount() << " thread(s), forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
+        << " s, " << sim.threadCount() << " thread(s)"
+        << (o.threads && *o.threads > sim.threadCount()
+                ? " (" + std::to_string(*o.threads) + " asked for: the most this machine runs)"
+                : std::string())
+        << ", forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
         << "  stable dt    " << (std::isfinite(stableDt) ? std::to_string(stableDt) + " s" : std::string("unlimited"))
         << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n";
     out << "  effects      springs, gravity";

@@ -219,7 +219,11 @@ struct Row {
 
 int runStudy(const StudyOptions& o) {
   namespace fs = std::filesystem;
-  fs::create_directories(o.out);
+  std::error_code made;
+  fs::create_directories(o.out, made);
+  if (made || !fs::is_directory(o.out))
+    throw std::runtime_error("study --out: cannot create the output directory '" + o.out +
+                             "': " + (made ? made.message() : std::string("a file of that name is in the way")));
   const bool quick = o.quick;
   std::vector<SceneDef> scenes;
   {

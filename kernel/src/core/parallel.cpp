@@ -1,5 +1,8 @@
 #include "weft/core/parallel.hpp"
 
+#include <tbb/global_control.h>
+
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -15,7 +18,12 @@ Executor::Executor(int threadCount) {
     threadCount = static_cast<int>(std::thread::hardware_concurrency());
     if (threadCount <= 0) threadCount = 1;
   }
-  threadCount_ = threadCount;
+  // TBB never runs more threads than it allows in all (the machine's, unless a
+  // global_control says less): say so rather than promise what will not run.
+  const auto allowed =
+      static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  threadCount_ = allowed > 0 ? std::min(threadCount, allowed) : threadCount;
+  threadCount = threadCount_;
   owned_ = std::make_unique<tbb::task_arena>(threadCount);
   owned_->initialize();
   arena_ = owned_.get();

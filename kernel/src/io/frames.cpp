@@ -24,7 +24,7 @@ constexpr long kCacheHeaderBytes = 32;
 constexpr long kCacheFrameCountOffset = 24;
 
 [[noreturn]] void throwIo(const std::string& what, const std::string& path, int error) {
-  throw std::runtime_error("weft: " + what + " '" + path + "': " + std::strerror(error));
+  throw std::runtime_error(what + " '" + path + "': " + std::strerror(error));
 }
 
 const char* precisionName(std::uint32_t scalarBytes) {
@@ -89,7 +89,7 @@ void validateTopology(const std::string& path, const Vec3Array<S>& x, const Fram
   const auto check = [&](const char* field, std::size_t item, int corner, Index value) {
     if (value < 0 || value >= n) {
       std::ostringstream msg;
-      msg << "weft: writing '" << path << "': " << field << "[" << item << "][" << corner << "] = " << value
+      msg << "writing '" << path << "': " << field << "[" << item << "][" << corner << "] = " << value
           << " is not a particle index in [0, " << n << ")";
       throw std::invalid_argument(msg.str());
     }
@@ -181,7 +181,7 @@ FrameCacheWriter<S>::FrameCacheWriter(std::string path, Index particleCount)
     : path_(std::move(path)), tmpPath_(path_ + ".tmp"), particleCount_(particleCount) {
   if (particleCount < 0) {
     std::ostringstream msg;
-    msg << "weft: frame cache '" << path_ << "': particleCount = " << particleCount << " is negative";
+    msg << "frame cache '" << path_ << "': particleCount = " << particleCount << " is negative";
     throw std::invalid_argument(msg.str());
   }
   file_ = std::fopen(tmpPath_.c_str(), "wb");
@@ -211,10 +211,10 @@ FrameCacheWriter<S>::~FrameCacheWriter() {
 
 template <class S>
 void FrameCacheWriter<S>::append(const State<S>& state) {
-  if (!file_) throw std::logic_error("weft: frame cache '" + path_ + "': append() after close()");
+  if (!file_) throw std::logic_error("frame cache '" + path_ + "': append() after close()");
   if (state.x.rows() != particleCount_) {
     std::ostringstream msg;
-    msg << "weft: frame cache '" << path_ << "': state.x has " << state.x.rows() << " rows, the cache holds "
+    msg << "frame cache '" << path_ << "': state.x has " << state.x.rows() << " rows, the cache holds "
         << particleCount_ << " particles";
     throw std::invalid_argument(msg.str());
   }
@@ -228,7 +228,7 @@ void FrameCacheWriter<S>::append(const State<S>& state) {
 
 template <class S>
 void FrameCacheWriter<S>::close() {
-  if (!file_) throw std::logic_error("weft: frame cache '" + path_ + "': close() called twice");
+  if (!file_) throw std::logic_error("frame cache '" + path_ + "': close() called twice");
   const std::uint64_t frames = static_cast<std::uint64_t>(frameCount_);
   int error = 0;
   if (std::fseek(file_, kCacheFrameCountOffset, SEEK_SET) != 0 || std::fwrite(&frames, sizeof frames, 1, file_) != 1 ||
@@ -252,7 +252,7 @@ FrameCacheReader<S>::FrameCacheReader(std::string path) : path_(std::move(path))
   if (!file_) throwIo("cannot open frame cache", path_, errno);
   const auto fail = [&](const std::string& what) {
     std::fclose(std::exchange(file_, nullptr));
-    throw std::runtime_error("weft: frame cache '" + path_ + "': " + what);
+    throw std::runtime_error("frame cache '" + path_ + "': " + what);
   };
   if (std::fseek(file_, 0, SEEK_END) != 0) {
     const int error = errno;
@@ -321,7 +321,7 @@ template <class S>
 void FrameCacheReader<S>::read(Index frame, State<S>& out) {
   if (frame < 0 || frame >= frameCount_) {
     std::ostringstream msg;
-    msg << "weft: frame cache '" << path_ << "': frame = " << frame << " is not in [0, " << frameCount_ << ")";
+    msg << "frame cache '" << path_ << "': frame = " << frame << " is not in [0, " << frameCount_ << ")";
     throw std::out_of_range(msg.str());
   }
   const std::size_t coordinates = 3 * static_cast<std::size_t>(particleCount_);

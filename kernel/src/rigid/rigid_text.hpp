@@ -16,7 +16,15 @@ inline std::string formatNumber(double v) {
 
 /// "(x, y, z)".
 inline std::string formatVector(const Eigen::Vector3d& v) {
-  return "(" + formatNumber(v.x()) + ", " + formatNumber(v.y()) + ", " + formatNumber(v.z()) + ")";
+  // Appended piece by piece (a chain of operator+ on temporaries trips GCC 12's -Wrestrict).
+  std::string out = "(";
+  out += formatNumber(v.x());
+  out += ", ";
+  out += formatNumber(v.y());
+  out += ", ";
+  out += formatNumber(v.z());
+  out += ")";
+  return out;
 }
 
 }  // namespace weft::rigid_detail

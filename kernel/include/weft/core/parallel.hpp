@@ -28,7 +28,8 @@ namespace weft {
 
 class Executor {
  public:
-  /// Owns an arena of `threadCount` threads (0 = all hardware threads).
+  /// Owns an arena of `threadCount` threads (0 = all hardware threads), at most as many as
+  /// TBB allows in all (the machine's threads): threadCount() says how many.
   explicit Executor(int threadCount = 0);
   /// Runs on an arena owned by the embedding program; it must outlive this Executor.
   explicit Executor(tbb::task_arena& external);
