@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 
 #include "weft/rigid/rigid_world.hpp"
@@ -188,24 +189,79 @@ void RigidWorld::buildConstraints(double h) {
     }
     blocks_.push_back(block);
   }
+  colourBlocks();
   (void)h;
 }
 
-void RigidWorld::warmStart() {
-  for (Constraint& c : constraints_) {
-    // An impulse found while the point was still apart at the start of its substep is an
-    // impact (a speculative contact closing): it stopped the approach once and must not
-    // be applied again (it would throw the body back). Only resting contact carries over.
-    const bool impact = c.previousSeparation > options_.linearSlop;
-    c.previousSeparation = c.separation;
-    if (impact) {
-      c.normalImpulse = c.tangentImpulse1 = c.tangentImpulse2 = 0;
-      continue;
+void RigidWorld::colourBlocks() {
+  // Greedy colouring in block (pair) order, as Box2D v3 colours its constraint graph: each
+  // manifold takes the lowest colour neither of its dynamic bodies has yet. Static and
+  // kinematic bodies are only read by the passes, so they do not constrain the colours.
+  const RigidModel& m = *model_;
+  std::fill(bodyColours_.begin(), bodyColours_.end(), 0);
+  colourCount_.assign(kColours + 1, 0);
+  const std::size_t count = blocks_.size();
+  colourOrder_.resize(count);  // within the reserved capacity
+  for (std::size_t k = 0; k < count; ++k) {
+    const Constraint& c = constraints_[static_cast<std::size_t>(blocks_[k].first)];
+    const bool dynA = m.motion[c.bodyA] == BodyMotion::Dynamic, dynB = m.motion[c.bodyB] == BodyMotion::Dynamic;
+    const std::uint64_t used = (dynA ? bodyColours_[c.bodyA] : 0) | (dynB ? bodyColours_[c.bodyB] : 0);
+    int colour = kColours;  // all taken: the serial colour
+    if (~used != 0) colour = std::countr_zero(~used);
+    if (colour < kColours) {
+      if (dynA) bodyColours_[c.bodyA] |= std::uint64_t(1) << colour;
+      if (dynB) bodyColours_[c.bodyB] |= std::uint64_t(1) << colour;
     }
-    apply(c, 0, c.normalImpulse);
-    apply(c, 1, c.tangentImpulse1);
-    apply(c, 2, c.tangentImpulse2);
+    blocks_[k].colour = colour;
+    ++colourCount_[colour];
   }
+  // Counting sort: block indices colour by colour, in block order within a colour
+  // (colourCount_ becomes each colour's insertion cursor).
+  colourStart_.assign(kColours + 2, 0);
+  for (int c = 0; c <= kColours; ++c) colourStart_[c + 1] = colourStart_[c] + colourCount_[c];
+  for (int c = 0; c <= kColours; ++c) colourCount_[c] = colourStart_[c];
+  for (std::size_t k = 0; k < count; ++k)
+    colourOrder_[static_cast<std::size_t>(colourCount_[blocks_[k].colour]++)] = static_cast<Index>(k);
+}
+
+template <class Fn>
+void RigidWorld::forEachBlockByColour(const Executor& executor, bool reversed, Fn&& fn) {
+  // Colours with few manifolds run serially (a parallel dispatch costs more than they do);
+  // the result is the same either way, as a colour's manifolds share no dynamic body.
+  constexpr Index kParallelBlocks = 128, kGrain = 32;
+  for (int k = 0; k <= kColours; ++k) {
+    const int colour = reversed ? kColours - k : k;
+    const Index begin = colourStart_[colour], end = colourStart_[colour + 1];
+    if (begin == end) continue;
+    if (colour == kColours || end - begin < kParallelBlocks) {
+      for (Index i = begin; i < end; ++i) fn(colourOrder_[static_cast<std::size_t>(i)]);
+    } else {
+      executor.parallelFor(end - begin, kGrain, [&](Index b0, Index b1) {
+        for (Index i = b0; i < b1; ++i) fn(colourOrder_[static_cast<std::size_t>(begin + i)]);
+      });
+    }
+  }
+}
+
+void RigidWorld::warmStart(const Executor& executor) {
+  forEachBlockByColour(executor, false, [&](Index b) {
+    const Block& block = blocks_[static_cast<std::size_t>(b)];
+    for (int p = 0; p < block.count; ++p) {
+      Constraint& c = constraints_[static_cast<std::size_t>(block.first + p)];
+      // An impulse found while the point was still apart at the start of its substep is an
+      // impact (a speculative contact closing): it stopped the approach once and must not
+      // be applied again (it would throw the body back). Only resting contact carries over.
+      const bool impact = c.previousSeparation > options_.linearSlop;
+      c.previousSeparation = c.separation;
+      if (impact) {
+        c.normalImpulse = c.tangentImpulse1 = c.tangentImpulse2 = 0;
+        continue;
+      }
+      apply(c, 0, c.normalImpulse);
+      apply(c, 1, c.tangentImpulse1);
+      apply(c, 2, c.tangentImpulse2);
+    }
+  });
   for (Support& s : supports_) {
     const bool impact = s.previousSeparation > options_.linearSlop;
     s.previousSeparation = s.separation;
@@ -216,14 +272,17 @@ void RigidWorld::warmStart() {
   }
 }
 
-void RigidWorld::advanceSeparations(double hs) {
+void RigidWorld::advanceSeparations(double hs, const Executor& executor) {
   // The points moved with the bodies' velocities (real and split) over the substep.
-  for (Constraint& c : constraints_) {
-    const Index a = c.bodyA, b = c.bodyB;
-    const Vec3 va = state_.v[a] + pushV_[a] + (state_.w[a] + pushW_[a]).cross(c.rA);
-    const Vec3 vb = state_.v[b] + pushV_[b] + (state_.w[b] + pushW_[b]).cross(c.rB);
-    c.separation += hs * (vb - va).dot(c.normal);
-  }
+  executor.parallelFor(static_cast<Index>(constraints_.size()), 256, [&](Index begin, Index end) {
+    for (Index k = begin; k < end; ++k) {
+      Constraint& c = constraints_[static_cast<std::size_t>(k)];
+      const Index a = c.bodyA, b = c.bodyB;
+      const Vec3 va = state_.v[a] + pushV_[a] + (state_.w[a] + pushW_[a]).cross(c.rA);
+      const Vec3 vb = state_.v[b] + pushV_[b] + (state_.w[b] + pushW_[b]).cross(c.rB);
+      c.separation += hs * (vb - va).dot(c.normal);
+    }
+  });
   for (Support& s : supports_) {
     const Vec3 vb = state_.v[s.body] + pushV_[s.body] + (state_.w[s.body] + pushW_[s.body]).cross(s.r);
     s.separation += hs * (vb.dot(s.direction[0]) - s.speed[0]);
@@ -236,11 +295,17 @@ double RigidWorld::relativeVelocity(const Constraint& c, int k) const {
 }
 
 void RigidWorld::apply(const Constraint& c, int k, double lambda) {
+  // Only dynamic bodies are written: a static or kinematic one (the floor under many
+  // manifolds of one colour) is shared by parallel passes and must only be read.
   const Vec3& d = c.direction(k);
-  state_.v[c.bodyA] -= (c.inverseMassA * lambda) * d;
-  state_.w[c.bodyA] -= lambda * c.angularA[k];
-  state_.v[c.bodyB] += (c.inverseMassB * lambda) * d;
-  state_.w[c.bodyB] += lambda * c.angularB[k];
+  if (c.inverseMassA > 0) {
+    state_.v[c.bodyA] -= (c.inverseMassA * lambda) * d;
+    state_.w[c.bodyA] -= lambda * c.angularA[k];
+  }
+  if (c.inverseMassB > 0) {
+    state_.v[c.bodyB] += (c.inverseMassB * lambda) * d;
+    state_.w[c.bodyB] += lambda * c.angularB[k];
+  }
 }
 
 void RigidWorld::solveFriction(Constraint& c, double slip1, double slip2, double share) {
@@ -268,16 +333,20 @@ void RigidWorld::solveNormal(Constraint& c) {
   c.maxNormalImpulse = std::max(c.maxNormalImpulse, total);
 }
 
-void RigidWorld::solveVelocities(bool backward) {
-  const std::size_t count = blocks_.size();
-  for (std::size_t k = 0; k < count; ++k) {
-    const Block& block = blocks_[backward ? count - 1 - k : k];
+void RigidWorld::solveVelocities(bool backward, const Executor& executor) {
+  // Colour by colour (the order of the colours alternating between passes, so no manifold
+  // is always solved first), each colour's manifolds in parallel.
+  forEachBlockByColour(executor, backward, [&](Index b) { solveBlock(blocks_[static_cast<std::size_t>(b)]); });
+}
+
+void RigidWorld::solveBlock(const Block& block) {
+  {
     Constraint* c = constraints_.data() + block.first;
     // Friction first, the normal last (non-penetration matters most).
     if (block.count == 1) {
       solveFriction(c[0], relativeVelocity(c[0], 1), relativeVelocity(c[0], 2), 1.0);
       solveNormal(c[0]);
-      continue;
+      return;
     }
     // Friction symmetrically: each point's tangential impulse from the same velocities
     // (Jacobi within the manifold, each point taking its share), so no corner is served
@@ -307,7 +376,7 @@ void RigidWorld::solveVelocities(bool backward) {
     for (int p = 0; p < block.count; ++p) valid = valid && c[p].normalImpulse + x[p] >= 0;
     if (!valid) {
       for (int p = 0; p < block.count; ++p) solveNormal(c[p]);
-      continue;
+      return;
     }
     for (int p = 0; p < block.count; ++p) {
       c[p].normalImpulse += x[p];
@@ -317,7 +386,7 @@ void RigidWorld::solveVelocities(bool backward) {
   }
 }
 
-void RigidWorld::solvePositions(double h) {
+void RigidWorld::solvePositions(double h, const Executor& executor) {
   // Split impulses (Catto; Bullet's splitImpulse): penetration is recovered through
   // velocities that move the positions of this step only and are then forgotten, so
   // pushing bodies apart never leaves energy in them (a stack does not hop or rock).
@@ -328,21 +397,29 @@ void RigidWorld::solvePositions(double h) {
     pushW_[b].setZero();
   }
   for (int it = 0; it < options_.positionIterations; ++it) {
-    for (Constraint& c : constraints_) {
-      const double depth = -(c.separation + options_.linearSlop);
-      if (depth <= 0) continue;
-      const Index a = c.bodyA, b = c.bodyB;
-      const Vec3 dv = pushV_[b] + pushW_[b].cross(c.rB) - pushV_[a] - pushW_[a].cross(c.rA);
-      const double target = std::min(options_.penetrationRate * depth / h, options_.maxPushVelocity);
-      const double lambda = -c.normalMass * (dv.dot(c.normal) - target);
-      const double total = std::max(c.pushImpulse + lambda, 0.0);
-      const Vec3 impulse = (total - c.pushImpulse) * c.normal;
-      c.pushImpulse = total;
-      pushV_[a] -= m.inverseMass[a] * impulse;
-      pushW_[a] -= invInertiaWorld_[a] * c.rA.cross(impulse);
-      pushV_[b] += m.inverseMass[b] * impulse;
-      pushW_[b] += invInertiaWorld_[b] * c.rB.cross(impulse);
-    }
+    forEachBlockByColour(executor, it % 2 == 1, [&](Index blockIndex) {
+      const Block& block = blocks_[static_cast<std::size_t>(blockIndex)];
+      for (int p = 0; p < block.count; ++p) {
+        Constraint& c = constraints_[static_cast<std::size_t>(block.first + p)];
+        const double depth = -(c.separation + options_.linearSlop);
+        if (depth <= 0) continue;
+        const Index a = c.bodyA, b = c.bodyB;
+        const Vec3 dv = pushV_[b] + pushW_[b].cross(c.rB) - pushV_[a] - pushW_[a].cross(c.rA);
+        const double target = std::min(options_.penetrationRate * depth / h, options_.maxPushVelocity);
+        const double lambda = -c.normalMass * (dv.dot(c.normal) - target);
+        const double total = std::max(c.pushImpulse + lambda, 0.0);
+        const Vec3 impulse = (total - c.pushImpulse) * c.normal;
+        c.pushImpulse = total;
+        if (c.inverseMassA > 0) {  // only dynamic bodies are written (see apply)
+          pushV_[a] -= m.inverseMass[a] * impulse;
+          pushW_[a] -= invInertiaWorld_[a] * c.rA.cross(impulse);
+        }
+        if (c.inverseMassB > 0) {
+          pushV_[b] += m.inverseMass[b] * impulse;
+          pushW_[b] += invInertiaWorld_[b] * c.rB.cross(impulse);
+        }
+      }
+    });
     for (Support& s : supports_) {  // the held point does not move: the body alone is pushed
       const double depth = -(s.separation + options_.linearSlop);
       if (depth <= 0) continue;
@@ -358,41 +435,44 @@ void RigidWorld::solvePositions(double h) {
   }
 }
 
-void RigidWorld::integratePositions(double h, bool last) {
+void RigidWorld::integratePositions(double h, bool last, const Executor& executor) {
   const RigidModel& m = *model_;
-  for (Index b = 0; b < m.bodyCount(); ++b) {
-    switch (m.motion[b]) {
-      case BodyMotion::Static:
-        break;
-      case BodyMotion::Kinematic:
-        if (last) {  // exactly on the path at the end of the step
-          state_.x[b] = targetX_[b];
-          state_.q[b] = targetQ_[b];
-        } else {
-          state_.x[b] += h * state_.v[b];
-          const double turn = h * state_.w[b].norm();
+  executor.parallelFor(m.bodyCount(), 64, [&](Index begin, Index end) {
+    for (Index b = begin; b < end; ++b) {
+      switch (m.motion[b]) {
+        case BodyMotion::Static:
+          break;
+        case BodyMotion::Kinematic:
+          if (last) {  // exactly on the path at the end of the step
+            state_.x[b] = targetX_[b];
+            state_.q[b] = targetQ_[b];
+          } else {
+            state_.x[b] += h * state_.v[b];
+            const double turn = h * state_.w[b].norm();
+            if (turn > 0)
+              state_.q[b] =
+                  (Quat(Eigen::AngleAxisd(turn, state_.w[b] / state_.w[b].norm())) * state_.q[b]).normalized();
+          }
+          rotation_[b] = state_.q[b].toRotationMatrix();
+          break;
+        case BodyMotion::Dynamic: {
+          state_.x[b] += h * (state_.v[b] + pushV_[b]);
+          // Torque-free rotation with the world angular momentum fixed over the step, then
+          // the split-impulse turn (positions only).
+          const Vec3 L = rotation_[b] * m.inertia[b] * rotation_[b].transpose() * state_.w[b];
+          state_.q[b] = integrateRotation(state_.q[b], L, m.inverseInertia[b], h);
+          const double turn = h * pushW_[b].norm();
           if (turn > 0)
-            state_.q[b] = (Quat(Eigen::AngleAxisd(turn, state_.w[b] / state_.w[b].norm())) * state_.q[b]).normalized();
+            state_.q[b] = (Quat(Eigen::AngleAxisd(turn, pushW_[b] / pushW_[b].norm())) * state_.q[b]).normalized();
+          const Mat3 r = state_.q[b].toRotationMatrix();
+          rotation_[b] = r;
+          invInertiaWorld_[b] = r * m.inverseInertia[b] * r.transpose();
+          state_.w[b] = invInertiaWorld_[b] * L;
+          break;
         }
-        rotation_[b] = state_.q[b].toRotationMatrix();
-        break;
-      case BodyMotion::Dynamic: {
-        state_.x[b] += h * (state_.v[b] + pushV_[b]);
-        // Torque-free rotation with the world angular momentum fixed over the step, then
-        // the split-impulse turn (positions only).
-        const Vec3 L = rotation_[b] * m.inertia[b] * rotation_[b].transpose() * state_.w[b];
-        state_.q[b] = integrateRotation(state_.q[b], L, m.inverseInertia[b], h);
-        const double turn = h * pushW_[b].norm();
-        if (turn > 0)
-          state_.q[b] = (Quat(Eigen::AngleAxisd(turn, pushW_[b] / pushW_[b].norm())) * state_.q[b]).normalized();
-        const Mat3 r = state_.q[b].toRotationMatrix();
-        rotation_[b] = r;
-        invInertiaWorld_[b] = r * m.inverseInertia[b] * r.transpose();
-        state_.w[b] = invInertiaWorld_[b] * L;
-        break;
       }
     }
-  }
+  });
 }
 
 void RigidWorld::buildSupports(double h) {

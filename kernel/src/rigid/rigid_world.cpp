@@ -86,6 +86,10 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   lastConstraints_.reserve(4 * cap);
   pairFirstConstraint_.reserve(cap + 1);
   blocks_.reserve(cap);
+  bodyColours_.resize(n);
+  colourOrder_.reserve(cap);
+  colourStart_.reserve(kColours + 2);
+  colourCount_.reserve(kColours + 1);
   lastPairFirstConstraint_.reserve(cap + 1);
   lastPairFirstConstraint_.push_back(0);
   setState(initial);
@@ -325,16 +329,16 @@ StepStatus RigidWorld::stepChunk(double h, const Executor& executor, bool force,
   for (int sub = 0; sub < substeps; ++sub) {
     for (Index b = 0; b < n; ++b)
       if (m.motion[b] == BodyMotion::Dynamic) state_.v[b] += hs * gravity_;
-    warmStart();
+    warmStart(executor);
     // Symmetric Gauss-Seidel: sweeps alternate in direction, so no contact point is always
     // solved first.
     for (int i = 0; i < options_.velocityIterations; ++i) {
-      solveVelocities(i % 2 == 1);
+      solveVelocities(i % 2 == 1, executor);
       solveSupports(i % 2 == 1);
     }
-    solvePositions(hs);
-    integratePositions(hs, sub == substeps - 1);
-    advanceSeparations(hs);
+    solvePositions(hs, executor);
+    integratePositions(hs, sub == substeps - 1, executor);
+    advanceSeparations(hs, executor);
   }
   applyRestitution();
   if (rollback()) {

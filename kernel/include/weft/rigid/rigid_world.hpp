@@ -299,6 +299,7 @@ class RigidWorld {
   std::vector<NarrowPhaseOutcome> outcomes_;
   std::vector<Constraint> constraints_, lastConstraints_;
   std::vector<Index> pairFirstConstraint_, lastPairFirstConstraint_;  // per pair, CSR into constraints
+  static constexpr int kColours = 64;  // colours of the parallel passes; more: one serial colour
   // A support contact as the solver sees it: the body is B, the held point A.
   struct Support {
     Index body = 0;
@@ -314,9 +315,14 @@ class RigidWorld {
   struct Block {  // one manifold's points, solved together along the normal
     Index first = 0;
     int count = 0;
+    int colour = 0;                                     // of the parallel passes (colourBlocks)
     Eigen::Matrix4d inverse = Eigen::Matrix4d::Zero();  // of the points' normal coupling (count x count used)
   };
   std::vector<Block> blocks_;
+  std::vector<std::uint64_t> bodyColours_;  // per body: the colours its manifolds took (bit k: colour k)
+  std::vector<Index> colourOrder_;          // block indices, colour by colour
+  std::vector<Index> colourStart_;          // colour c is colourOrder_[colourStart_[c], colourStart_[c + 1])
+  std::vector<Index> colourCount_;
   Index capacityPairs_ = 0;
   double invStep_ = 0;                     // 1 / substep of the current step
   double lastSubstep_ = 0;                 // the last step's substep, s (warm starting rescales impulses by the ratio)
@@ -337,8 +343,17 @@ class RigidWorld {
   /// Rollback: whether a pair ends the chunk deeper than the limit and than it started.
   bool endsTooDeep(const Executor& executor);
   void buildConstraints(double h);
-  void warmStart();
-  void solveVelocities(bool backward);
+  /// Colours the manifolds so that no two of one colour share a dynamic body (greedy, in
+  /// pair order: the same colours for any thread count); the passes below solve a colour's
+  /// manifolds in parallel, colour after colour.
+  void colourBlocks();
+  /// Runs fn(block index) over every manifold, colour by colour (reversed: last colour
+  /// first), each colour's manifolds in parallel.
+  template <class Fn>
+  void forEachBlockByColour(const Executor& executor, bool reversed, Fn&& fn);
+  void warmStart(const Executor& executor);
+  void solveBlock(const Block& block);
+  void solveVelocities(bool backward, const Executor& executor);
   /// Relative velocity of the point along direction k (0 normal, 1 and 2 tangents).
   double relativeVelocity(const Constraint& c, int k) const;
   /// Applies lambda along direction k (B gets +, A gets -).
@@ -347,9 +362,9 @@ class RigidWorld {
   /// the correction (1: Gauss-Seidel; 1 / points: Jacobi within a manifold).
   void solveFriction(Constraint& c, double slip1, double slip2, double share);
   void solveNormal(Constraint& c);
-  void advanceSeparations(double hs);
-  void solvePositions(double h);
-  void integratePositions(double h, bool last);
+  void advanceSeparations(double hs, const Executor& executor);
+  void solvePositions(double h, const Executor& executor);
+  void integratePositions(double h, bool last, const Executor& executor);
   void applyRestitution();
   void buildSupports(double h);
   void solveSupports(bool backward);
