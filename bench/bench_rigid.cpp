@@ -4,12 +4,15 @@
 //                                      a bin) after 1.5 s of settling (bodies falling and
 //                                      landing, most of them touching), narrow phase M
 //                                      (0 exact, 1 OFG, 2 witness), T threads. Counters:
-//                                      bodies, contacts, pairs; allocs_per_iteration (0).
+//                                      bodies, contacts, pairs (candidates), touching_pairs,
+//                                      mean_height and below_floor of the settled state
+//                                      (beside BM_Peer_Bullet_Pile's); allocs_per_iteration (0).
 //   BM_Rigid_Stack/threads:T           one step of the 10-box stack at rest.
 // The world is reset to the settled state every 60 steps so each configuration times the
 // same motion.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <memory>
 
 #include "bench_common.hpp"
@@ -60,6 +63,19 @@ void BM_Rigid_Pile(benchmark::State& st) {
   st.counters["bodies"] = static_cast<double>(world.model().bodyCount());
   st.counters["contacts"] = static_cast<double>(world.lastStats().contacts);
   st.counters["pairs"] = static_cast<double>(world.lastStats().candidatePairs);
+  st.counters["touching_pairs"] = static_cast<double>(world.lastStats().touchingPairs);
+  // The settled state (as BM_Peer_Bullet_Pile reports its own): mean height of the dynamic
+  // bodies' centres, and how many ended under the floor's top.
+  double height = 0;
+  int dynamicCount = 0, belowFloor = 0;
+  for (weft::Index b = 0; b < world.model().bodyCount(); ++b) {
+    if (world.model().motion[b] != weft::BodyMotion::Dynamic) continue;
+    height += settled.state.x[b].y();
+    belowFloor += settled.state.x[b].y() < 0;
+    ++dynamicCount;
+  }
+  st.counters["mean_height"] = height / std::max(dynamicCount, 1);
+  st.counters["below_floor"] = belowFloor;
   st.counters["allocs_per_iteration"] = static_cast<double>(allocations) / static_cast<double>(st.iterations());
   st.SetLabel(weft::narrowPhaseMethodName(method));
 }

@@ -17,10 +17,10 @@ packages=(
   clang-14 libclang-rt-14-dev      # tools/fuzz.sh: clang++-14 and its libFuzzer runtime (-fsanitize=fuzzer)
 )
 
-# Peers for the BVH benchmarks, optional (WEFT_PEERS=1 bash tools/setup.sh): weft_bench
-# builds BM_Peer_Embree_* when Embree is found (docs/benchmarks.md).
+# Peers, optional (WEFT_PEERS=1 bash tools/setup.sh): weft_bench builds BM_Peer_Embree_*
+# when Embree is found and BM_Peer_Bullet_Pile when Bullet is (docs/benchmarks.md).
 if [ "${WEFT_PEERS:-0}" = "1" ]; then
-  packages+=(libembree-dev)
+  packages+=(libembree-dev libbullet-dev)
 fi
 
 missing=()
