@@ -343,18 +343,8 @@ TEST(RigidAllocation, ClothCarryingBodiesDoesNotAllocate) {
   // The tablecloth trick: particle contacts and support contacts every step.
   for (const int threads : {1, 2}) {
     SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
-    const Index n = 16;
-    ModelBuilder<double> builder;
-    addClothGrid(builder, tableclothCloth(n));
-    const std::vector<Index> grip = tableclothGrip(n);
-    for (const Index i : grip) builder.pin(i);
-    SimulationOptions options;
-    options.integrator = IntegratorKind::SymplecticEuler;
-    options.threads = threads;
-    options.dt = defaultTimeStep(BuiltinScene::Flag, n);
-    options.rigid = tableclothBodies();
-    options.kinematicPins.push_back({grip, tableclothPull(4.0)});
-    Simulation<double> sim(builder.build(), options);
+    const std::unique_ptr<Simulation<double>> made = makeTablecloth(4.0, threads, 16);
+    Simulation<double>& sim = *made;
     ASSERT_TRUE(sim.run(50).ok());  // warm-up: the pull starts, warm starting fills
     StepStatus status;
     const Counts steps = countDuring([&] {

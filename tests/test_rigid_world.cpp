@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "support/test_support.hpp"
 #include "weft/model/builder.hpp"
 #include "weft/model/builders.hpp"
 #include "weft/rigid/rigid_world.hpp"
@@ -456,23 +457,15 @@ struct TableclothRun {
 };
 
 TableclothRun runTablecloth(double speed, double seconds, int threads, bool supports = true, Index n = 32) {
-  ModelBuilder<double> builder;
-  addClothGrid(builder, tableclothCloth(n));
+  const std::unique_ptr<Simulation<double>> made = test::makeTablecloth(speed, threads, n, supports);
+  Simulation<double>& sim = *made;
   const std::vector<Index> grip = tableclothGrip(n);
-  for (const Index i : grip) builder.pin(i);
-  SimulationOptions options;
-  options.integrator = IntegratorKind::SymplecticEuler;
-  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
-  options.threads = threads;
-  options.rigid = tableclothBodies();
-  options.rigid.particleSupports = supports;
-  options.kinematicPins.push_back({grip, tableclothPull(speed)});
-  Simulation<double> sim(builder.build(), options);
+  const double dt = sim.options().dt;
   TableclothRun run;
   const RigidWorld& world = *sim.rigidWorld();
   for (Index b = 0; b < world.model().bodyCount(); ++b) run.start.push_back(world.bodyOrigin(b));
   const double edge0 = sim.state().x(grip[0], 0);
-  const int steps = static_cast<int>(std::lround(seconds / options.dt));
+  const int steps = static_cast<int>(std::lround(seconds / dt));
   for (int k = 0; k < steps; ++k) {
     const StepStatus s = sim.step();
     EXPECT_TRUE(s.ok()) << s.message();

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <type_traits>
@@ -204,6 +205,24 @@ inline SimulationOptions flagOptions(IntegratorKind kind, ForceStrategy strategy
   o.threads = threads;
   o.dt = dt;
   return o;
+}
+
+/// The tablecloth trick (weft/scene/rigid_scenes.hpp) as a Simulation: a size x size
+/// cloth on the table under two boxes and a ball, its +x edge pulled at `speed` (m/s),
+/// symplectic Euler at the cloth's default step.
+inline std::unique_ptr<Simulation<double>> makeTablecloth(double speed, int threads, Index size, bool supports = true) {
+  ModelBuilder<double> builder;
+  addClothGrid(builder, tableclothCloth(size));
+  const std::vector<Index> grip = tableclothGrip(size);
+  for (const Index i : grip) builder.pin(i);
+  SimulationOptions options;
+  options.integrator = IntegratorKind::SymplecticEuler;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, size);
+  options.threads = threads;
+  options.rigid = tableclothBodies();
+  options.rigid.particleSupports = supports;
+  options.kinematicPins.push_back({grip, tableclothPull(speed)});
+  return std::make_unique<Simulation<double>>(builder.build(), options);
 }
 
 }  // namespace weft::test
