@@ -211,6 +211,19 @@ double medianNs(int passes, double perCount, Fn&& fn) {
 
 volatile std::size_t gSink = 0;  // keeps the timed loops from being optimised away
 
+/// What a false candidate costs downstream: the median ns of the exact query over (up to
+/// 2000 of, evenly spread) them; 0 when there are none.
+template <class Query>
+double falseCandidateNs(const std::vector<std::size_t>& falses, Query&& query) {
+  const std::size_t sample = std::min<std::size_t>(falses.size(), 2000);
+  if (sample == 0) return 0;
+  return medianNs(3, static_cast<double>(sample), [&] {
+    std::size_t c = 0;
+    for (std::size_t s = 0; s < sample; ++s) c += query(falses[s * falses.size() / sample]);
+    gSink = gSink + c;
+  });
+}
+
 struct Row {
   std::string scene, volume;
   std::size_t pairs = 0, tested = 0, candidates = 0, contacts = 0, falseCandidates = 0, missed = 0;
@@ -298,18 +311,10 @@ std::vector<Row> studyPile(const std::string& name, const std::vector<Piece>& pi
       for (const std::size_t k : sweep) c += overlap(kind, dirs.size(), v[pairs[k].first], v[pairs[k].second]);
       gSink = gSink + c;
     });
-    // What a false candidate costs downstream: the exact query, mean over (up to 2000 of) them.
-    const std::size_t sample = std::min<std::size_t>(falses.size(), 2000);
-    if (sample > 0) {
-      row.exactNs = medianNs(3, static_cast<double>(sample), [&] {
-        std::size_t c = 0;
-        for (std::size_t s = 0; s < sample; ++s) {
-          const auto [i, j] = pairs[falses[s * falses.size() / sample]];
-          c += exactContact(pieces[i], pieces[j], scratch);
-        }
-        gSink = gSink + c;
-      });
-    }
+    row.exactNs = falseCandidateNs(falses, [&](std::size_t k) {
+      const auto [i, j] = pairs[k];
+      return exactContact(pieces[i], pieces[j], scratch);
+    });
     row.costUs = 1e-3 * (row.fitNs * static_cast<double>(n) + row.testNs * static_cast<double>(sweep.size()) +
                          row.exactNs * static_cast<double>(row.falseCandidates));
     rows.push_back(row);
@@ -373,17 +378,8 @@ std::vector<Row> studyCloth(const std::vector<Piece>& pieces, const std::vector<
       for (const std::size_t f : sweep) c += test(f / n, f % n);
       gSink = gSink + c;
     });
-    const std::size_t sample = std::min<std::size_t>(falses.size(), 2000);
-    if (sample > 0) {
-      row.exactNs = medianNs(3, static_cast<double>(sample), [&] {
-        std::size_t c = 0;
-        for (std::size_t s = 0; s < sample; ++s) {
-          const std::size_t f = falses[s * falses.size() / sample];
-          c += particleContact(particles[f / n], pieces[f % n]);
-        }
-        gSink = gSink + c;
-      });
-    }
+    row.exactNs =
+        falseCandidateNs(falses, [&](std::size_t f) { return particleContact(particles[f / n], pieces[f % n]); });
     row.costUs = 1e-3 * (row.fitNs * static_cast<double>(n) + row.testNs * static_cast<double>(sweep.size()) +
                          row.exactNs * static_cast<double>(row.falseCandidates));
     rows.push_back(row);

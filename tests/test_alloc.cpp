@@ -134,6 +134,19 @@ Counts countDuring(F&& f) {
   return {after.news - before.news, after.mallocs - before.mallocs};
 }
 
+/// Twenty steps (after the caller's warm-up): all succeed, and none calls operator new or
+/// the malloc family.
+template <class S>
+void expectTwentyStepsDoNotAllocate(Simulation<S>& sim) {
+  StepStatus status;
+  const Counts steps = countDuring([&] {
+    for (int k = 0; k < 20; ++k) status = sim.step();
+  });
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
+  EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+}
+
 TEST(AllocationCounter, SeesOperatorNewAndMalloc) {
   // The counters must work, or the zero counts below would prove nothing.
   // (The pointers go through a volatile so that the new/delete pairs are not elided.)
@@ -252,13 +265,7 @@ TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
       options.profileEffects = true;
       Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
       ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
-      StepStatus status;
-      const Counts steps = countDuring([&] {
-        for (int k = 0; k < 20; ++k) status = sim.step();
-      });
-      ASSERT_TRUE(status.ok()) << status.message();
-      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
-      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      expectTwentyStepsDoNotAllocate(sim);
       EXPECT_GT(sim.effectTimes().forces.wind, 0);
       EXPECT_GT(sim.effectTimes().forces.repulsion, 0);
     }
@@ -296,13 +303,7 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
       c.featureAngle = 0;  // every mesh edge is a feature: the edge pass runs
       Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
       ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
-      StepStatus status;
-      const Counts steps = countDuring([&] {
-        for (int k = 0; k < 20; ++k) status = sim.step();
-      });
-      ASSERT_TRUE(status.ok()) << status.message();
-      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
-      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      expectTwentyStepsDoNotAllocate(sim);
       EXPECT_GT(sim.totalCollision().contacts, 0);
       EXPECT_GT(sim.totalCollision().rollbacks, 0);
       EXPECT_GT(sim.totalCollision().edgeContacts, 0);
@@ -327,13 +328,7 @@ TEST(RigidAllocation, StepsWithRigidBodiesDoNotAllocate) {
       if (method == NarrowPhaseMethod::Witness) options.rigid.timeOfImpact = RigidTimeOfImpact::Rollback;
       Simulation<double> sim(makeFlag<double>(8), options);
       ASSERT_TRUE(sim.run(200).ok());  // warm-up: the bodies fall into contact
-      StepStatus status;
-      const Counts steps = countDuring([&] {
-        for (int k = 0; k < 20; ++k) status = sim.step();
-      });
-      ASSERT_TRUE(status.ok()) << status.message();
-      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
-      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      expectTwentyStepsDoNotAllocate(sim);
       EXPECT_GT(sim.rigidWorld()->lastStats().contacts, 50);
       EXPECT_GT(sim.effectTimes().rigidBodies, 0);
     }
@@ -346,13 +341,7 @@ TEST(RigidAllocation, ClothCarryingBodiesDoesNotAllocate) {
     const std::unique_ptr<Simulation<double>> made = makeTablecloth(4.0, threads, 16);
     Simulation<double>& sim = *made;
     ASSERT_TRUE(sim.run(50).ok());  // warm-up: the pull starts, warm starting fills
-    StepStatus status;
-    const Counts steps = countDuring([&] {
-      for (int k = 0; k < 20; ++k) status = sim.step();
-    });
-    ASSERT_TRUE(status.ok()) << status.message();
-    EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
-    EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+    expectTwentyStepsDoNotAllocate(sim);
     EXPECT_GT(sim.rigidWorld()->lastStats().supportContacts, 10);
   }
 }
