@@ -12,7 +12,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 name="${1:-$(date -u +%Y-%m-%d)-$(hostname -s)}"
 shift || true
-WEFT_PEERS=1 bash tools/setup.sh  # with the optional peers (Embree) for the BVH ratios
+echo "run_benchmarks: installing what is missing, with the optional peers (Embree, Bullet) for the peer ratios"
+WEFT_PEERS=1 bash tools/setup.sh
+echo "run_benchmarks: Google Benchmark may warn 'Library was built as DEBUG': that is Debian's libbenchmark"
+echo "run_benchmarks: package itself; weft and its benchmarks are built Release (weft_build_type in the JSON)"
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j2 --target weft_bench weft_cli
 mkdir -p bench/results

@@ -46,6 +46,8 @@ def compare(base_path, new_path):
 
 
 def main():
+    if len(sys.argv) < 2 or (sys.argv[1] == "--compare" and len(sys.argv) != 4):
+        sys.exit("usage: summarize.py RESULTS.json [MEMORY.json] | --compare A.json B.json")
     if sys.argv[1] == "--compare":
         compare(sys.argv[2], sys.argv[3])
         return
@@ -112,4 +114,9 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except OSError as e:
+        sys.exit(f"summarize.py: cannot read {e.filename}: {e.strerror}")
+    except (KeyError, ValueError) as e:
+        sys.exit(f"summarize.py: not a Google Benchmark JSON file of weft_bench ({e})")

@@ -339,7 +339,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     out << "weft run " << spec.name << "\n"
         << "  model        " << model.particleCount() << " particles (" << model.pinnedCount() << " pinned), "
         << model.springCount() << " springs (structural " << byClass[0] << ", shear " << byClass[1] << ", bend "
-        << byClass[2] << "), " << model.triangleCount() << " triangles, " << spec.bodies.size() << " bodies\n";
+        << byClass[2] << "), " << model.triangleCount() << " triangles, " << spec.bodies.size()
+        << (spec.bodies.size() == 1 ? " body\n" : " bodies\n");
     for (const std::string& report : assembled.meshReports) out << "  mesh         " << report << "\n";
     out << "  integrator   " << weft::integratorName(options.integrator) << ", " << precision << ", dt " << options.dt
         << " s, " << sim.threadCount() << " thread(s)"
