@@ -380,6 +380,34 @@ TEST(Cli, HelpNamesEveryBuiltInSceneAndSceneFiles) {
   EXPECT_NE(top.output.find("scene file"), std::string::npos) << top.output;
 }
 
+TEST(Cli, MemoryIsAskedForBeforeItIsTaken) {
+  // A billion particles: refused with what it would need, before anything is allocated.
+  const CliRun huge = weft("run flag --size 32768", true);
+  EXPECT_EQ(huge.exitCode, 2) << huge.output;
+  EXPECT_NE(huge.output.find("needs about"), std::string::npos) << huge.output;
+  EXPECT_NE(huge.output.find("GiB (1073741824 particles"), std::string::npos) << huge.output;
+  EXPECT_EQ(huge.output.find("bad_alloc"), std::string::npos) << huge.output;
+  const CliRun capped = weft("run flag --size 512 --max-memory 100", true);
+  EXPECT_EQ(capped.exitCode, 2) << capped.output;
+  EXPECT_NE(capped.output.find("--max-memory allows 100 MiB"), std::string::npos) << capped.output;
+}
+
+TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "a sanitizer's shadow memory and quarantine are not the program's";
+#endif
+  std::vector<std::string> runs;
+  for (const std::string& name : builtinSceneNames()) runs.push_back(name);
+  runs.push_back("flag --size 256 --integrator implicit");  // the arrays dominate, not the process
+  for (const std::string& args : runs) {
+    SCOPED_TRACE(args);
+    const nlohmann::json j = runJson("run " + args + " --steps 1 --threads 1");
+    const double estimate = j.value("memory_estimate_mb", 0.0), peak = j.value("peak_rss_mb", 0.0);
+    EXPECT_GT(peak, 0);
+    EXPECT_NEAR(estimate / peak, 1.0, 0.25) << estimate << " MB estimated, " << peak << " MB peak";
+  }
+}
+
 TEST(Cli, NoSubcommandIsAnError) {
   const CliRun r = weft("", true);
   EXPECT_NE(r.exitCode, 0) << r.output;

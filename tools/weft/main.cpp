@@ -145,6 +145,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"exact", "ofg", "witness"}));
   cmd->add_option("--ofg-faces", run.ofgFaces, "Rigid bodies: faces per side the Opposing Face Geometry keeps (k >= 1)")
       ->check(CLI::Range(1, 1024));
+  cmd->add_option("--max-memory", run.maxMemory,
+                  "MiB the run may take (default: what the machine has available); a scene that needs more "
+                  "is refused before anything is allocated")
+      ->check(finitePositive);
   cmd->add_option("--time-of-impact", run.timeOfImpact,
                   "Rigid bodies: speculative (contacts before touching, one solve a step; default) | rollback "
                   "(chunks cut at the time of impact, taken back when too deep)")

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
@@ -25,6 +27,35 @@ double peakResidentMegabytes() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+/// Resident memory of this process now, bytes (/proc/self/statm; 0 if unreadable).
+double residentBytes() {
+  std::ifstream statm("/proc/self/statm");
+  double pages = 0, resident = 0;
+  if (!(statm >> pages >> resident)) return 0;
+  return resident * static_cast<double>(sysconf(_SC_PAGESIZE));
+}
+
+/// Memory the machine has available for a new allocation, bytes (MemAvailable of
+/// /proc/meminfo; infinity if unreadable).
+double availableBytes() {
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key;
+  double kib = 0;
+  std::string unit;
+  while (meminfo >> key >> kib >> unit)
+    if (key == "MemAvailable:") return kib * 1024;
+  return std::numeric_limits<double>::infinity();
+}
+
+std::string gib(double bytes) {
+  char text[32];
+  if (bytes >= 1024.0 * 1024 * 1024)
+    std::snprintf(text, sizeof text, "%.1f GiB", bytes / (1024.0 * 1024 * 1024));
+  else
+    std::snprintf(text, sizeof text, "%.0f MiB", bytes / (1024.0 * 1024));
+  return text;
 }
 
 std::string hex(std::uint64_t h) {
@@ -198,6 +229,25 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
 
 template <class S>
 int run(const RunOptions& o, const weft::SceneSpec& spec) {
+  // Memory asked for before it is taken: what this process holds now plus what the scene
+  // will, against what the machine has (or --max-memory).
+  // Besides the scene's arrays, the first step's runtime (TBB's arena and threads, the
+  // allocator's arenas: about 1.5 MB resident) and, when a mesh is read, assimp's importers
+  // (about 17 MB of its code and tables become resident), both measured on the built-in
+  // scenes (rope, drape-mesh).
+  const weft::MemoryEstimate need = weft::estimateSceneMemory(spec);
+  constexpr double kRuntimeBytes = 1.5 * 1024 * 1024, kMeshImportBytes = 17.0 * 1024 * 1024;
+  const double estimate = residentBytes() + kRuntimeBytes + (need.readsMeshes ? kMeshImportBytes : 0) + need.bytes;
+  const double limit = o.maxMemory ? *o.maxMemory * 1024 * 1024 : availableBytes();
+  if (estimate > limit) {
+    std::cerr << "weft run: " << spec.name << " needs about " << gib(estimate) << " (" << need.particles
+              << " particles, " << need.springs << " springs, " << need.triangles << " triangles, "
+              << (spec.precision == weft::Precision::Float ? "float" : "double") << ", "
+              << weft::integratorName(spec.simulation.integrator) << "); "
+              << (o.maxMemory ? "--max-memory allows " : "this machine has ") << gib(limit)
+              << (o.maxMemory ? "" : " available (--max-memory sets the limit)") << "\n";
+    return 2;
+  }
   weft::AssembledScene<S> assembled = weft::assembleScene<S>(spec);
   weft::SimulationOptions options = assembled.options;
   options.profileEffects = true;  // two clock reads per block and effect; none without effects
@@ -332,6 +382,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["output"] = output.directory;
     }
     j["peak_rss_mb"] = peakResidentMegabytes();
+    j["memory_estimate_mb"] = estimate / (1024.0 * 1024.0);  // asked before assembling (cloth meshes not counted)
     std::cout << j.dump() << std::endl;
   } else {
     std::ostringstream out;
@@ -375,7 +426,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << " J; lowest point y = " << lowest << " m\n"
         << "  status       " << (status.ok() ? std::string("ok") : status.message()) << "\n"
         << "  state hash   " << hash << "\n"
-        << "  peak memory  " << peakResidentMegabytes() << " MB resident\n";
+        << "  peak memory  " << peakResidentMegabytes() << " MB resident (" << estimate / (1024.0 * 1024.0)
+        << " MB estimated before assembling)\n";
     if (frames)
       out << "  frames       " << frames->written() << " (" << output.format << ", every " << output.every
           << " steps) in " << output.directory << "\n";

@@ -26,6 +26,7 @@ struct RunOptions {
   std::optional<std::string> narrowPhase;   // rigid bodies: exact | ofg | witness
   std::optional<int> ofgFaces;              // rigid bodies: k of the Opposing Face Geometry
   std::optional<std::string> timeOfImpact;  // rigid bodies: speculative | rollback
+  std::optional<double> maxMemory;          // MiB the run may take (default: what the machine has available)
   bool json = false;
   bool progress = true;  // a progress bar when stdout is a terminal and the run is long
   std::optional<std::string> out;

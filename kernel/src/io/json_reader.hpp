@@ -109,12 +109,17 @@ class JsonPathTracker {
   std::string path() const {
     std::string p;
     for (const Frame& f : stack_) {
-      if (f.array)
-        p += "[" + std::to_string(f.index) + "]";
-      else if (f.keyed)
-        p += (p.empty() ? "" : ".") + displayKey(f.key);
-      else
+      // Appended piece by piece (operator+ on temporaries trips GCC 12's -Wrestrict).
+      if (f.array) {
+        p += '[';
+        p += std::to_string(f.index);
+        p += ']';
+      } else if (f.keyed) {
+        if (!p.empty()) p += '.';
+        p += displayKey(f.key);
+      } else {
         break;
+      }
     }
     return p;
   }

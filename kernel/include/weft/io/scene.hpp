@@ -98,6 +98,22 @@ struct SceneSpec {
 /// Steps the scene asks for (steps, or duration / dt rounded up).
 std::int64_t sceneStepCount(const SceneSpec& scene);
 
+/// What a scene will take, asked before it is assembled: its particle, spring and triangle
+/// counts (cloth grids and ropes from their specs; cloth meshes are not read here and not
+/// counted: `meshBodies` says how many were left out) and the heap the assembled
+/// Simulation holds for them, in bytes, at its precision and integrator. The bytes per
+/// particle, spring and triangle are those measured for weft's own arrays (heap in use
+/// after assembling and one step, which is exactly linear in the three counts); a test
+/// keeps the estimate within 25 % of the peak resident memory of the built-in scenes.
+struct MemoryEstimate {
+  std::int64_t particles = 0, springs = 0, triangles = 0;
+  std::int64_t rigidBodies = 0;
+  std::int64_t meshBodies = 0;  // cloth_mesh bodies, not counted
+  bool readsMeshes = false;     // cloth meshes or mesh obstacles: assimp will be loaded
+  double bytes = 0;
+};
+MemoryEstimate estimateSceneMemory(const SceneSpec& scene);
+
 /// Reads a JSON scene file; mesh paths are relative to the file's directory.
 /// Throws SceneError.
 SceneSpec readSceneFile(const std::string& path);
