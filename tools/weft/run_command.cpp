@@ -406,7 +406,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     out << "\n";
     if (rigid) {
       const weft::RigidStats& total = rigid->totalStats();
-      out << "  rigid bodies " << rigid->model().bodyCount() << " bodies, " << rigid->lastStats().contacts
+      out << "  rigid bodies " << rigid->model().bodyCount()
+          << (rigid->model().bodyCount() == 1 ? " body, " : " bodies, ") << rigid->lastStats().contacts
           << " contacts at the end (deepest " << rigid->lastStats().maxPenetration << " m), "
           << sim.lastParticleBodyContacts().contacts << " particle contacts, " << rigid->lastStats().supportContacts
           << " support contacts, narrow phase " << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method)
