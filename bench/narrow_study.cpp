@@ -463,20 +463,7 @@ int main(int argc, char** argv) {
             weft::collideHulls(s.hull, p.a, s.hull, p.b, kMargin, options, cache, scratch);
           });
         }
-        for (std::size_t i = 0; i < pairs.size(); ++i) {
-          const bool e = exact[i].pointCount > 0, g = got[i].pointCount > 0;
-          row.exactContacts += e;
-          row.found += e && g;
-          row.falseContacts += g && !e;
-          if (e && g) {
-            const double c = std::clamp(exact[i].normal.dot(got[i].normal), -1.0, 1.0);
-            const double angle = std::acos(c) * 180 / 3.14159265358979;
-            const double depth = 1000 * std::abs(deepest(exact[i]) - deepest(got[i]));
-            row.normalError = std::max(row.normalError, angle);
-            row.depthError = std::max(row.depthError, depth);
-            row.correct += angle <= 5 && depth <= 1;
-          }
-        }
+        compare(exact, got, row);
         rows.push_back(row);
         std::fprintf(stderr, "%s %s %s k=%d: %.0f ns/pair\n", row.shape.c_str(), row.situation.c_str(),
                      row.method.c_str(), row.k, row.nsPerPair);
