@@ -4,18 +4,19 @@
 //                                      a bin) after 1.5 s of settling (bodies falling and
 //                                      landing, most of them touching), narrow phase M
 //                                      (0 exact, 1 OFG, 2 witness), T threads. Counters:
-//                                      bodies, contacts, pairs (candidates), touching_pairs,
-//                                      mean_height and below_floor of the settled state
-//                                      (beside BM_Peer_Bullet_Pile's); allocs_per_iteration (0).
+//                                      bodies, contacts, pairs (candidates), touching_pairs;
+//                                      in_bin, below_floor, mean_height and mean_speed of the
+//                                      settled state (pile_summary.hpp, beside
+//                                      BM_Peer_Bullet_Pile's); allocs_per_iteration (0).
 //   BM_Rigid_Stack/threads:T           one step of the 10-box stack at rest.
 // The world is reset to the settled state every 60 steps so each configuration times the
 // same motion.
 #include <benchmark/benchmark.h>
 
-#include <algorithm>
 #include <memory>
 
 #include "bench_common.hpp"
+#include "pile_summary.hpp"
 #include "weft/weft.hpp"
 
 namespace {
@@ -64,18 +65,14 @@ void BM_Rigid_Pile(benchmark::State& st) {
   st.counters["contacts"] = static_cast<double>(world.lastStats().contacts);
   st.counters["pairs"] = static_cast<double>(world.lastStats().candidatePairs);
   st.counters["touching_pairs"] = static_cast<double>(world.lastStats().touchingPairs);
-  // The settled state (as BM_Peer_Bullet_Pile reports its own): mean height of the dynamic
-  // bodies' centres, and how many ended under the floor's top.
-  double height = 0;
-  int dynamicCount = 0, belowFloor = 0;
+  // The settled state, as BM_Peer_Bullet_Pile reports its own.
+  weftbench::PileSummary summary;
   for (weft::Index b = 0; b < world.model().bodyCount(); ++b) {
     if (world.model().motion[b] != weft::BodyMotion::Dynamic) continue;
-    height += settled.state.x[b].y();
-    belowFloor += settled.state.x[b].y() < 0;
-    ++dynamicCount;
+    const Eigen::Vector3d& x = settled.state.x[b];
+    summary.add(x.x(), x.y(), x.z(), settled.state.v[b].norm());
   }
-  st.counters["mean_height"] = height / std::max(dynamicCount, 1);
-  st.counters["below_floor"] = belowFloor;
+  summary.report(st);
   st.counters["allocs_per_iteration"] = static_cast<double>(allocations) / static_cast<double>(st.iterations());
   st.SetLabel(weft::narrowPhaseMethodName(method));
 }
