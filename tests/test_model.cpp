@@ -6,8 +6,11 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <set>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "support/test_support.hpp"
 #include "weft/effects/force_field.hpp"
@@ -535,6 +538,106 @@ TYPED_TEST(ModelTest, ParallelGridAxesAreRejected) {
   spec.columnAxis = {-2, 0, 0};
   ModelBuilder<S> b;
   EXPECT_THROW(addClothGrid(b, spec), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------
+// Derived topology: checked against brute force
+// ---------------------------------------------------------------------------------------
+
+/// A cloth grid after a lone particle (so its triangles are not a grid's), as a Model.
+template <class S>
+Model<S> offsetGrid(Index w, Index h) {
+  ModelBuilder<S> b;
+  b.addParticle({5, 5, 5}, 1);
+  addClothGrid(b, gridSpec(w, h));
+  return b.build().model;
+}
+
+TYPED_TEST(ModelTest, SpringIncidenceListsEachParticlesSpringsAscending) {
+  using S = TypeParam;
+  for (const Model<S>& model : {offsetGrid<S>(5, 4), ModelBuilder<S>().build().model}) {
+    const Incidence& inc = model.springIncidence();
+    const Springs<S>& sp = model.springs();
+    ASSERT_EQ(inc.offsets.size(), model.particleCount() + 1);
+    EXPECT_EQ(inc.entries.size(), 2 * sp.count());
+    for (Index i = 0; i < model.particleCount(); ++i) {
+      std::vector<Index> expected;
+      for (Index s = 0; s < sp.count(); ++s) {
+        if (sp.a[s] == i) expected.push_back(2 * s);
+        if (sp.b[s] == i) expected.push_back(2 * s + 1);
+      }
+      const std::vector<Index> listed(inc.entries.data() + inc.begin(i), inc.entries.data() + inc.end(i));
+      EXPECT_EQ(listed, expected) << "particle " << i;
+    }
+  }
+}
+
+TYPED_TEST(ModelTest, TriangleIncidenceListsEachParticlesTrianglesAscending) {
+  using S = TypeParam;
+  const Model<S> model = offsetGrid<S>(4, 6);
+  const Incidence& inc = model.triangleIncidence();
+  const Triangles& tr = model.triangles();
+  EXPECT_EQ(inc.entries.size(), 3 * tr.count());
+  for (Index i = 0; i < model.particleCount(); ++i) {
+    std::vector<Index> expected;
+    for (Index t = 0; t < tr.count(); ++t)
+      if (tr.a[t] == i || tr.b[t] == i || tr.c[t] == i) expected.push_back(t);
+    const std::vector<Index> listed(inc.entries.data() + inc.begin(i), inc.entries.data() + inc.end(i));
+    EXPECT_EQ(listed, expected) << "particle " << i;
+  }
+}
+
+TYPED_TEST(ModelTest, SpringColouringIsAPermutationWithNoSharedParticleInAColour) {
+  using S = TypeParam;
+  const Model<S> model = makeFlag<S>(9).model;
+  const SpringColouring<S>& col = model.springColouring();
+  const Springs<S>& sp = model.springs();
+  ASSERT_GT(col.colourCount(), 0);
+  EXPECT_EQ(col.offsets.front(), 0);
+  EXPECT_EQ(col.offsets.back(), sp.count());
+  // Each spring (its endpoints and parameters) appears exactly once.
+  std::multiset<std::tuple<Index, Index, S, S, S>> original, permuted;
+  for (Index s = 0; s < sp.count(); ++s) {
+    original.insert({sp.a[s], sp.b[s], sp.restLength[s], sp.stiffness[s], sp.damping[s]});
+    permuted.insert({col.a[s], col.b[s], col.restLength[s], col.stiffness[s], col.damping[s]});
+  }
+  EXPECT_EQ(original, permuted);
+  for (Index c = 0; c < col.colourCount(); ++c) {
+    std::set<Index> touched;
+    for (Index k = col.offsets[c]; k < col.offsets[c + 1]; ++k) {
+      EXPECT_TRUE(touched.insert(col.a[k]).second) << "colour " << c << " touches particle " << col.a[k] << " twice";
+      EXPECT_TRUE(touched.insert(col.b[k]).second) << "colour " << c << " touches particle " << col.b[k] << " twice";
+    }
+  }
+}
+
+TYPED_TEST(ModelTest, GridTrianglesAndCollisionEdgesAreDerivedFromTheSprings) {
+  using S = TypeParam;
+  const Model<S> grid = makeFlag<S>(6).model;
+  EXPECT_TRUE(grid.trianglesFormGrid());
+  EXPECT_FALSE(offsetGrid<S>(6, 6).trianglesFormGrid());
+  EXPECT_FALSE(ModelBuilder<S>().build().model.trianglesFormGrid());
+  std::vector<Edge> expected;
+  const Springs<S>& sp = grid.springs();
+  for (Index s = 0; s < sp.count(); ++s)
+    if (sp.kind[static_cast<size_t>(s)] != SpringClass::Bend) expected.push_back({sp.a[s], sp.b[s]});
+  EXPECT_EQ(grid.collisionEdges(), expected);
+}
+
+TYPED_TEST(ModelTest, DerivedDataIsComputedOnceAndSharedByCopies) {
+  using S = TypeParam;
+  const Model<S> model = offsetGrid<S>(5, 5);
+  EXPECT_EQ(model.derivedBuildCount(), 0) << "nothing is derived before it is asked for";
+  const Incidence* first = &model.springIncidence();
+  model.triangleIncidence();
+  model.springColouring();
+  model.trianglesFormGrid();
+  model.collisionEdges();
+  EXPECT_EQ(model.derivedBuildCount(), 5);
+  const Model<S> copy = model;  // shares the derived data
+  EXPECT_EQ(&copy.springIncidence(), first);
+  copy.springColouring();
+  EXPECT_EQ(model.derivedBuildCount(), 5);
 }
 
 TEST(ModelNames, SpringClassNames) {

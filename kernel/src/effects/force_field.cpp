@@ -162,7 +162,6 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
   if (effects.repulsion.enabled()) repulsion_ = std::make_unique<detail::Repulsion<S>>(model, effects.repulsion);
   const Index n = model.particleCount();
   const Index m = model.springCount();
-  const Springs<S>& sp = model.springs();
   if (strategy_ == ForceStrategy::Auto) strategy_ = model.grid() ? ForceStrategy::GridStencil : ForceStrategy::Gather;
   if (strategy_ == ForceStrategy::GridStencil && !model.grid())
     throw std::invalid_argument("force strategy 'grid-stencil' needs a model built as a cloth grid");
@@ -170,55 +169,11 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
   switch (strategy_) {
     case ForceStrategy::Gather: {
       springForce_.setZero(m, 3);
-      detail::buildIncidence(model, incidenceOffsets_, incidence_);
+      incidence_ = &model.springIncidence();  // built once per Model
       break;
     }
     case ForceStrategy::Coloured: {
-      // Greedy edge colouring: each spring takes the smallest colour used by neither
-      // endpoint yet. At most 2 * maxDegree - 1 colours.
-      std::vector<Index> degree(n, 0);
-      for (Index s = 0; s < m; ++s) {
-        ++degree[sp.a[s]];
-        ++degree[sp.b[s]];
-      }
-      const Index maxDegree = n > 0 ? *std::max_element(degree.begin(), degree.end()) : 0;
-      const Index words = (2 * maxDegree) / 64 + 1;
-      std::vector<std::uint64_t> used(static_cast<size_t>(n) * words, 0);
-      std::vector<Index> colour(m);
-      Index colours = 0;
-      for (Index s = 0; s < m; ++s) {
-        const std::uint64_t* ua = &used[static_cast<size_t>(sp.a[s]) * words];
-        const std::uint64_t* ub = &used[static_cast<size_t>(sp.b[s]) * words];
-        Index c = 0;
-        for (Index w = 0; w < words; ++w) {
-          const std::uint64_t free = ~(ua[w] | ub[w]);
-          if (free) {
-            c = w * 64 + static_cast<Index>(__builtin_ctzll(free));
-            break;
-          }
-        }
-        colour[s] = c;
-        used[static_cast<size_t>(sp.a[s]) * words + c / 64] |= std::uint64_t(1) << (c % 64);
-        used[static_cast<size_t>(sp.b[s]) * words + c / 64] |= std::uint64_t(1) << (c % 64);
-        colours = std::max(colours, c + 1);
-      }
-      colourOffsets_.assign(colours + 1, 0);
-      for (Index s = 0; s < m; ++s) ++colourOffsets_[colour[s] + 1];
-      for (Index c = 0; c < colours; ++c) colourOffsets_[c + 1] += colourOffsets_[c];
-      std::vector<Index> fill(colourOffsets_.begin(), colourOffsets_.end() - 1);
-      colA_.resize(m);
-      colB_.resize(m);
-      colRest_.resize(m);
-      colKs_.resize(m);
-      colKd_.resize(m);
-      for (Index s = 0; s < m; ++s) {
-        const Index t = fill[colour[s]]++;
-        colA_[t] = sp.a[s];
-        colB_[t] = sp.b[s];
-        colRest_[t] = sp.restLength[s];
-        colKs_[t] = sp.stiffness[s];
-        colKd_[t] = sp.damping[s];
-      }
+      colouring_ = &model.springColouring();  // built once per Model
       force_.setZero(n, 3);
       break;
     }
@@ -291,8 +246,8 @@ void ForceField<S>::gatherForces(const Vec3Array<S>& x, const Vec3Array<S>& v, c
                    col(springForce_, 1), col(springForce_, 2));
   });
   exec.parallelFor(model_->particleCount(), kSinkBlock, [&](Index b, Index e) {
-    const Index* __restrict off = incidenceOffsets_.data();
-    const Index* __restrict inc = incidence_.data();
+    const Index* __restrict off = incidence_->offsets.data();
+    const Index* __restrict inc = incidence_->entries.data();
     const S* __restrict w = model_->inverseMass().data();
     const S* __restrict Fx = col(springForce_, 0);
     const S* __restrict Fy = col(springForce_, 1);
@@ -318,14 +273,15 @@ void ForceField<S>::colouredForces(const Vec3Array<S>& x, const Vec3Array<S>& v,
                                    const Executor& exec) {
   const Index n = model_->particleCount();
   exec.parallelFor(n, kParticleGrain, [&](Index b, Index e) { force_.middleRows(b, e - b).setZero(); });
-  for (Index c = 0; c + 1 < static_cast<Index>(colourOffsets_.size()); ++c) {
-    const Index first = colourOffsets_[c];
-    exec.parallelFor(colourOffsets_[c + 1] - first, kSpringGrain, [&](Index b, Index e) {
-      const Index* __restrict A = colA_.data();
-      const Index* __restrict B = colB_.data();
-      const S* __restrict rest = colRest_.data();
-      const S* __restrict ks = colKs_.data();
-      const S* __restrict kd = colKd_.data();
+  const SpringColouring<S>& colours = *colouring_;
+  for (Index c = 0; c < colours.colourCount(); ++c) {
+    const Index first = colours.offsets[c];
+    exec.parallelFor(colours.offsets[c + 1] - first, kSpringGrain, [&](Index b, Index e) {
+      const Index* __restrict A = colours.a.data();
+      const Index* __restrict B = colours.b.data();
+      const S* __restrict rest = colours.restLength.data();
+      const S* __restrict ks = colours.stiffness.data();
+      const S* __restrict kd = colours.damping.data();
       const S* __restrict X = col(x, 0), * __restrict Y = col(x, 1), * __restrict Z = col(x, 2);
       const S* __restrict VX = col(v, 0), * __restrict VY = col(v, 1), * __restrict VZ = col(v, 2);
       S* __restrict FX = col(force_, 0), * __restrict FY = col(force_, 1), * __restrict FZ = col(force_, 2);

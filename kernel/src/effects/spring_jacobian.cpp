@@ -74,7 +74,7 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       gamma_(model.springCount()),
       g_(model.springCount(), 3),
       diagonal_(model.particleCount(), 3) {
-  detail::buildIncidence(model, incidenceOffsets_, incidence_);
+  incidence_ = &model.springIncidence();  // built once per Model
   direction_.setZero();
   alpha_.setZero();
   beta_.setZero();
@@ -94,8 +94,8 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
   });
   // diag(A)_i = m_i + sum over the springs of i of alpha + (beta + gamma) d_c^2.
   exec.parallelFor(model_->particleCount(), ForceField<S>::kSinkBlock, [&](Index b, Index e) {
-    const Index* off = incidenceOffsets_.data();
-    const Index* inc = incidence_.data();
+    const Index* off = incidence_->offsets.data();
+    const Index* inc = incidence_->entries.data();
     for (Index i = b; i < e; ++i) {
       S sum[3] = {0, 0, 0};
       for (Index k = off[i]; k < off[i + 1]; ++k) {
@@ -119,8 +119,8 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
   });
   constexpr Index kBlock = ForceField<S>::kSinkBlock;
   exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
-    const Index* __restrict off = incidenceOffsets_.data();
-    const Index* __restrict inc = incidence_.data();
+    const Index* __restrict off = incidence_->offsets.data();
+    const Index* __restrict inc = incidence_->entries.data();
     const S* __restrict mass = model_->mass().data();
     const S* __restrict Gx = col(g_, 0);
     const S* __restrict Gy = col(g_, 1);

@@ -174,40 +174,17 @@ WindForce<S>::WindForce(const Model<S>& model, const WindEffect& wind) : model_(
   relative_.setZero(n, 3);
   // A cloth grid whose triangles are exactly addClothGrid's (two per cell, in cell order)
   // takes the stencil path: contiguous loads, no index lists.
-  if (model.grid() && model.grid()->width >= 2 && model.grid()->height >= 2) {
-    const Index W = model.grid()->width, H = model.grid()->height;
-    bool regular = nt == 2 * (W - 1) * (H - 1);
-    for (Index r = 0, t = 0; regular && r + 1 < H; ++r)
-      for (Index c = 0; regular && c + 1 < W; ++c, t += 2) {
-        const Index a = r * W + c;
-        regular = tr.a[t] == a && tr.b[t] == a + 1 && tr.c[t] == a + W + 1 && tr.a[t + 1] == a &&
-                  tr.b[t + 1] == a + W + 1 && tr.c[t + 1] == a + W;
-      }
-    if (regular) {
-      gridWidth_ = W;
-      gridHeight_ = H;
-      // Slot of cell a is a + W + 1, so that the gather's p - W - 1 never goes below 0;
-      // slots of cells that do not exist (last column, last row, the front pad) stay 0.
-      cellForce_.assign(static_cast<size_t>(6) * (n + W + 1), S(0));
-      return;
-    }
+  if (model.trianglesFormGrid()) {
+    const Index W = model.grid()->width;
+    gridWidth_ = W;
+    gridHeight_ = model.grid()->height;
+    // Slot of cell a is a + W + 1, so that the gather's p - W - 1 never goes below 0;
+    // slots of cells that do not exist (last column, last row, the front pad) stay 0.
+    cellForce_.assign(static_cast<size_t>(6) * (n + W + 1), S(0));
+    return;
   }
   triangleForce_.setZero(nt, 3);
-  // CSR particle -> triangles, each list ascending: a fixed summation order.
-  offsets_.setZero(n + 1);
-  for (Index t = 0; t < nt; ++t) {
-    ++offsets_[tr.a[t] + 1];
-    ++offsets_[tr.b[t] + 1];
-    ++offsets_[tr.c[t] + 1];
-  }
-  for (Index i = 0; i < n; ++i) offsets_[i + 1] += offsets_[i];
-  incidence_.resize(3 * nt);
-  std::vector<Index> fill(offsets_.data(), offsets_.data() + n);
-  for (Index t = 0; t < nt; ++t) {
-    incidence_[fill[tr.a[t]]++] = t;
-    incidence_[fill[tr.b[t]]++] = t;
-    incidence_[fill[tr.c[t]]++] = t;
-  }
+  incidence_ = &model.triangleIncidence();  // particle -> triangles, built once per Model
 }
 
 template <class S>
@@ -251,8 +228,6 @@ void WindForce<S>::prepare(const Vec3Array<S>& x, const Vec3Array<S>& v, double 
 
 template <class S>
 void WindForce<S>::add(Index begin, Index count, S* ax, S* ay, S* az) const {
-  const Index* __restrict off = offsets_.data();
-  const Index* __restrict inc = incidence_.data();
   const S* __restrict w = model_->inverseMass().data();
   const S* __restrict Fx = triangleForce_.col(0).data();
   const S* __restrict Fy = triangleForce_.col(1).data();
@@ -267,6 +242,8 @@ void WindForce<S>::add(Index begin, Index count, S* ax, S* ay, S* az) const {
                ay, az);
     return;
   }
+  const Index* __restrict off = incidence_->offsets.data();
+  const Index* __restrict inc = incidence_->entries.data();
   const S particleDrag = static_cast<S>(0.5 * wind_.airDensity * wind_.dragCoefficient * wind_.particleArea);
   for (Index t = 0; t < count; ++t) {
     const Index i = begin + t;

@@ -60,7 +60,7 @@ class WindForce {
   std::vector<S> psi_;                                // per-evaluation phase of each mode, S
   Vec3Array<S> relative_;                             // (n x 3) u_i, m/s
   Vec3Array<S> triangleForce_;                        // (t x 3) a third of each triangle's force, N
-  IndexArray offsets_, incidence_;                    // CSR particle -> triangles, ascending
+  const Incidence* incidence_ = nullptr;              // the Model's particle -> triangles (ascending)
   // Grid path (the model's triangles are a cloth grid's): per cell, a third of the force of
   // its two triangles, 6 arrays (triangle x axis) of n + W + 1 slots; 0 = generic path.
   Index gridWidth_ = 0, gridHeight_ = 0;

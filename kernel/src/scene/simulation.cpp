@@ -87,13 +87,9 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   if (options_.collision.any()) {
     // The edges the contact pass tests against mesh edges: the cloth's surface edges and a
     // rope's links (structural and shear springs), when there is a mesh to test them on.
-    std::vector<Edge> edges;
     const CollisionOptions& c = options_.collision;
-    if (c.continuous && c.edges && !c.meshes.empty()) {
-      const Springs<S>& springs = model_->springs();
-      for (Index s = 0; s < springs.count(); ++s)
-        if (springs.kind[static_cast<size_t>(s)] != SpringClass::Bend) edges.push_back({springs.a[s], springs.b[s]});
-    }
+    std::vector<Edge> edges;
+    if (c.continuous && c.edges && !c.meshes.empty()) edges = model_->collisionEdges();  // derived once per Model
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges));
   }
   if (!options_.rigid.bodies.empty()) {

@@ -52,6 +52,7 @@
 #include "weft/core/kinematic_path.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/core/types.hpp"
+#include "weft/model/topology.hpp"
 #include "weft/model/triangle_mesh.hpp"
 
 namespace weft {
@@ -143,8 +144,7 @@ struct MeshCollider {
 ///
 /// Times t0, t1 (s, on the simulation's clock counted from its initial state) are the
 /// start and end of the chunk: moving mesh obstacles are where their paths put them then.
-/// A cloth or rope edge: the particles at its ends.
-using Edge = std::array<Index, 2>;
+// (Edge, a cloth or rope edge given by the particles at its ends: weft/model/topology.hpp.)
 
 template <class S>
 class ContactSolver {

@@ -123,7 +123,7 @@ class ForceField {
   ForceStrategy strategy() const { return strategy_; }
   const Model<S>& model() const { return *model_; }
   /// Colours used by the Coloured strategy (0 for the others).
-  Index colourCount() const { return colourOffsets_.empty() ? 0 : static_cast<Index>(colourOffsets_.size()) - 1; }
+  Index colourCount() const { return colouring_ ? colouring_->colourCount() : 0; }
 
   /// Grain sizes (items per parallel block). Fixed numbers: the block boundaries, and so
   /// the results, do not depend on the thread count.
@@ -160,13 +160,10 @@ class ForceField {
   // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
   // meaning the particle is endpoint b and takes -f).
   Vec3Array<S> springForce_;     // (m x 3) force on endpoint a, N
-  IndexArray incidenceOffsets_;  // (n + 1)
-  IndexArray incidence_;         // (2m)
+  const Incidence* incidence_ = nullptr;  // the Model's particle -> spring lists
 
-  // Coloured: springs permuted into colour order, as SoA.
-  std::vector<Index> colourOffsets_;  // (colours + 1) ranges into the permuted arrays
-  IndexArray colA_, colB_;
-  ScalarArray<S> colRest_, colKs_, colKd_;
+  // Coloured: the Model's springs in colour order.
+  const SpringColouring<S>* colouring_ = nullptr;
   Vec3Array<S> force_;  // (n x 3) accumulated force, N
 
   // GridStencil: per chunk of rows, a window of family forces, laid out

@@ -62,8 +62,7 @@ class SpringJacobian {
   void product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);
 
   const Model<S>* model_;
-  IndexArray incidenceOffsets_;  // (n + 1)
-  IndexArray incidence_;         // (2m), entry 2 s + side (side 1: endpoint b, takes -g)
+  const Incidence* incidence_ = nullptr;  // the Model's particle -> spring lists (entry 2 s + side)
   Vec3Array<S> direction_;       // (m x 3) unit direction d of each spring (0 if length 0)
   ScalarArray<S> alpha_;         // (m) h^2 ks c, kg
   ScalarArray<S> beta_;          // (m) h^2 ks (1 - c), kg

@@ -12,14 +12,20 @@
 // height and, per spring family (a fixed neighbour offset such as "right neighbour" or
 // "two rows down"), the family's uniform rest length, stiffness and damping. The
 // GridStencil force strategy uses it to evaluate springs with contiguous loads only.
+//
+// What follows from the springs and triangles alone (incidence lists, the spring
+// colouring, collision edges) is derived data of the Model too: computed on first use,
+// once, and shared by every Simulation on the Model (weft/model/topology.hpp).
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "weft/core/types.hpp"
+#include "weft/model/topology.hpp"
 
 namespace weft {
 
@@ -85,10 +91,15 @@ struct GridLayout {
 template <class S>
 class ModelBuilder;
 
+namespace detail {
+template <class S>
+struct DerivedTopology;
+}
+
 template <class S>
 class Model {
  public:
-  Model() = default;
+  Model();
 
   Index particleCount() const { return static_cast<Index>(mass_.rows()); }
   Index springCount() const { return springs_.count(); }
@@ -105,6 +116,26 @@ class Model {
   /// Present for models built as a regular grid (enables the GridStencil strategy).
   const std::optional<GridLayout<S>>& grid() const { return grid_; }
 
+  // Derived topology (weft/model/topology.hpp): computed the first time it is asked for,
+  // then shared. Safe to call from several threads.
+
+  /// Particle -> springs; an entry is 2 s + side (side 1: the particle is endpoint b).
+  const Incidence& springIncidence() const;
+  /// Particle -> triangles; an entry is the triangle's index.
+  const Incidence& triangleIncidence() const;
+  /// Greedy edge colouring of the springs (each spring takes the smallest colour neither
+  /// endpoint has yet; at most 2 x the largest degree - 1 colours).
+  const SpringColouring<S>& springColouring() const;
+  /// True when the triangles are exactly a cloth grid's (two per cell, in cell order: cell
+  /// (r, c) with top-left a = r W + c gives (a, a+1, a+W+1) and (a, a+W+1, a+W)).
+  bool trianglesFormGrid() const;
+  /// The edges a contact pass tests against mesh edges: the structural and shear springs'
+  /// endpoints (a cloth's sides and diagonals, a rope's links), in spring order.
+  const std::vector<Edge>& collisionEdges() const;
+  /// How many derived structures this Model (and any copy of it) has computed so far:
+  /// a second Simulation on the same Model adds none.
+  int derivedBuildCount() const;
+
  private:
   friend class ModelBuilder<S>;
   ScalarArray<S> mass_;
@@ -112,6 +143,8 @@ class Model {
   Springs<S> springs_;
   Triangles triangles_;
   std::optional<GridLayout<S>> grid_;
+  // Shared by copies of this Model, which have the same springs and triangles.
+  std::shared_ptr<detail::DerivedTopology<S>> derived_;
 };
 
 extern template class Model<float>;
