@@ -1,0 +1,91 @@
+// Validation of CollisionOptions: every field checked, with its path and value in the
+// message.
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "contact_math.hpp"
+#include "weft/collide/obstacles.hpp"
+
+namespace weft {
+
+using detail::norm;
+using detail::v;
+
+void validateCollision(const CollisionOptions& c, const char* where) {
+  const std::string w = std::string(where) + ".";
+  const auto fail = [&](const std::string& field, double value, const char* rule) {
+    std::ostringstream msg;
+    msg.precision(17);
+    msg << w << field << " must be " << rule << ", got " << value;
+    throw std::invalid_argument(msg.str());
+  };
+  const auto finite = [&](const std::string& field, const Vec3d& p) {
+    if (!std::isfinite(p.x)) fail(field + ".x", p.x, "finite");
+    if (!std::isfinite(p.y)) fail(field + ".y", p.y, "finite");
+    if (!std::isfinite(p.z)) fail(field + ".z", p.z, "finite");
+  };
+  if (!(std::isfinite(c.thickness) && c.thickness > 0)) fail("thickness", c.thickness, "finite and > 0 (m)");
+  if (!(std::isfinite(c.epsilon) && c.epsilon > 0 && c.epsilon < c.thickness))
+    fail("epsilon", c.epsilon, "finite, > 0 and < thickness (m)");
+  if (!(std::isfinite(c.restingSpeed) && c.restingSpeed >= 0)) fail("restingSpeed", c.restingSpeed, "finite and >= 0");
+  if (!(std::isfinite(c.maxPenetration) && c.maxPenetration >= 0))
+    fail("maxPenetration", c.maxPenetration, "finite and >= 0 (m)");
+  if (!(c.maxHalvings >= 0 && c.maxHalvings <= 30)) fail("maxHalvings", c.maxHalvings, "in [0, 30]");
+  if (!(c.featureAngle >= 0 && c.featureAngle <= 180)) fail("featureAngle", c.featureAngle, "in [0, 180] (degrees)");
+  for (size_t k = 0; k < c.obstacles.size(); ++k) {
+    const Obstacle& o = c.obstacles[k];
+    const std::string f = "obstacles[" + std::to_string(k) + "].";
+    finite(f + "point", o.point);
+    if (!(std::isfinite(o.restitution) && o.restitution >= 0 && o.restitution <= 1))
+      fail(f + "restitution", o.restitution, "in [0, 1]");
+    if (!(std::isfinite(o.staticFriction) && o.staticFriction >= 0))
+      fail(f + "staticFriction", o.staticFriction, "finite and >= 0");
+    if (!(std::isfinite(o.kineticFriction) && o.kineticFriction >= 0 && o.kineticFriction <= o.staticFriction))
+      fail(f + "kineticFriction", o.kineticFriction, "finite, >= 0 and <= staticFriction");
+    switch (o.kind) {
+      case ObstacleKind::Plane:
+        finite(f + "normal", o.normal);
+        if (!(norm(v(o.normal)) > 0)) fail(f + "normal", 0, "a non-zero vector (length)");
+        break;
+      case ObstacleKind::Capsule:
+        finite(f + "end", o.end);
+        [[fallthrough]];
+      case ObstacleKind::Sphere:
+        if (!(std::isfinite(o.radius) && o.radius > 0)) fail(f + "radius", o.radius, "finite and > 0 (m)");
+        break;
+      case ObstacleKind::Box: {
+        finite(f + "halfExtents", o.halfExtents);
+        const double smallest = std::min({o.halfExtents.x, o.halfExtents.y, o.halfExtents.z});
+        if (!(smallest > 0)) fail(f + "halfExtents", smallest, "> 0 in every axis (smallest)");
+        if (!(std::isfinite(o.radius) && o.radius >= 0 && o.radius <= smallest))
+          fail(f + "radius", o.radius, "finite, >= 0 and <= the smallest half extent (edge rounding)");
+        break;
+      }
+    }
+  }
+  for (size_t k = 0; k < c.meshes.size(); ++k) {
+    const MeshObstacle& m = c.meshes[k];
+    const std::string f = "meshes[" + std::to_string(k) + "]" + (m.name.empty() ? "" : " (" + m.name + ")") + ".";
+    if (m.mesh.triangles.empty()) throw std::invalid_argument(w + f + "mesh must have at least one triangle, got none");
+    for (size_t i = 0; i < m.mesh.vertices.size(); ++i)
+      finite(f + "mesh.vertices[" + std::to_string(i) + "]", m.mesh.vertices[i]);
+    const auto count = static_cast<Index>(m.mesh.vertices.size());
+    for (size_t t = 0; t < m.mesh.triangles.size(); ++t)
+      for (int q = 0; q < 3; ++q)
+        if (m.mesh.triangles[t][q] < 0 || m.mesh.triangles[t][q] >= count)
+          fail(f + "mesh.triangles[" + std::to_string(t) + "][" + std::to_string(q) + "]", m.mesh.triangles[t][q],
+               "a vertex index in [0, vertex count)");
+    if (!(std::isfinite(m.restitution) && m.restitution >= 0 && m.restitution <= 1))
+      fail(f + "restitution", m.restitution, "in [0, 1]");
+    if (!(std::isfinite(m.staticFriction) && m.staticFriction >= 0))
+      fail(f + "staticFriction", m.staticFriction, "finite and >= 0");
+    if (!(std::isfinite(m.kineticFriction) && m.kineticFriction >= 0 && m.kineticFriction <= m.staticFriction))
+      fail(f + "kineticFriction", m.kineticFriction, "finite, >= 0 and <= staticFriction");
+    if (m.path) validateKinematicPath(*m.path, w + f + "path.");
+  }
+}
+
+}  // namespace weft
