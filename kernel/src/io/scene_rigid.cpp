@@ -14,13 +14,35 @@ namespace {
 
 Eigen::Vector3d eigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
 
-/// An orientation: {"axis": [x, y, z], "degrees": a} (a rotation by a about axis).
+/// An orientation: {"axis": [x, y, z], "degrees": a} (a rotation by a about axis), or
+/// {"quaternion": [w, x, y, z]}. A quaternion is used exactly as written, not renormalised:
+/// the bits written are the bits stepped, so a file can hold a generator's orientations
+/// (tools/scenes/pile.json), which no axis and angle in decimal reproduce exactly.
 Eigen::Quaterniond readRotation(const Reader& r, const Json& parent, const std::string& field, const char* key) {
   if (!parent.contains(key)) return Eigen::Quaterniond::Identity();
   const std::string f = Reader::join(field, key);
   const Json& j = parent[key];
-  r.object(j, f, {"axis", "degrees"});
-  if (!j.contains("axis")) r.fail(Reader::join(f, "axis"), "is required: the rotation axis [x, y, z]");
+  r.object(j, f, {"axis", "degrees", "quaternion"});
+  if (j.contains("quaternion")) {
+    if (j.contains("axis") || j.contains("degrees"))
+      r.fail(f, "give either quaternion or axis and degrees, not both; got " + shortDump(j));
+    const std::string fq = Reader::join(f, "quaternion");
+    const Json& list = j["quaternion"];
+    if (!list.is_array() || list.size() != 4)
+      r.fail(fq,
+             std::string("must be an array of 4 numbers [w, x, y, z], got ") + typeName(list) + " " + shortDump(list));
+    double c[4];
+    for (std::size_t k = 0; k < 4; ++k) c[k] = r.number(list[k], fq + "[" + std::to_string(k) + "]");
+    // A loose tolerance (17 significant digits carry a unit quaternion to ~1e-16) that
+    // still catches a quaternion that is not a rotation, which the kernel would
+    // renormalise silently.
+    const double norm = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3]);
+    if (!(std::abs(norm - 1) <= 1e-6))
+      r.fail(fq, "must be a unit quaternion (norm 1 within 1e-6), got " + shortDump(list) + " of norm " + fmt(norm));
+    return Eigen::Quaterniond(c[0], c[1], c[2], c[3]);
+  }
+  if (!j.contains("axis"))
+    r.fail(Reader::join(f, "axis"), "is required: the rotation axis [x, y, z] (or give a quaternion [w, x, y, z])");
   const Vec3d axis = r.direction(j, f, "axis", {0, 1, 0});
   const double degrees = r.anyNumber(j, f, "degrees", 0);
   const Eigen::Vector3d a = eigen(axis).normalized();

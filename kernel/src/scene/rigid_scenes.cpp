@@ -62,7 +62,7 @@ std::vector<Point3> icosahedron(double radius) {
   const double p = (1 + std::sqrt(5.0)) / 2;
   std::vector<Point3> v = {{-1, p, 0},  {1, p, 0},  {-1, -p, 0}, {1, -p, 0}, {0, -1, p},  {0, 1, p},
                            {0, -1, -p}, {0, 1, -p}, {p, 0, -1},  {p, 0, 1},  {-p, 0, -1}, {-p, 0, 1}};
-  for (Point3& x : v) x *= radius / std::sqrt(1 + p * p);
+  for (Point3& x : v) x *= radius / std::sqrt(std::fma(p, p, 1));  // fused: see pileScene
   return v;
 }
 
@@ -106,20 +106,37 @@ RigidOptions pileScene(Index bodies) {
     const Index layer = i / (side * side), row = (i / side) % side, col = i % side;
     RigidBodyDesc b;
     b.name = "body" + std::to_string(i);
-    b.density = 500 + 1000 * rng.uniform();
-    b.position = {(col - 4.5) * spacing + 0.05 * (rng.uniform() - 0.5), 0.4 + layer * spacing,
-                  (row - 4.5) * spacing + 0.05 * (rng.uniform() - 0.5)};
-    b.orientation =
-        Eigen::Quaterniond(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5 + 1e-3)
-            .normalized();
-    const double size = 0.1 + 0.1 * rng.uniform();
+    // Every a * b + c is a std::fma: GCC fuses such C++ expressions itself (its default is
+    // -ffp-contract=fast) when it optimises for a target with FMA, and not at -O0 or for
+    // plain x86-64, so written plainly the pile differed between builds (and from
+    // tools/scenes/pile.json, which holds its bits). Fused explicitly, every build makes
+    // the pile that optimised -march=native builds made.
+    b.density = std::fma(1000, rng.uniform(), 500);
+    // One draw per statement, since the order of a call's arguments is unspecified. The
+    // quaternion's and the box's were once drawn inside constructor calls, last argument
+    // first as GCC does it, and keep that order.
+    const double dx = 0.05 * (rng.uniform() - 0.5);
+    const double dz = 0.05 * (rng.uniform() - 0.5);
+    b.position = {std::fma(col - 4.5, spacing, dx), std::fma(layer, spacing, 0.4), std::fma(row - 4.5, spacing, dz)};
+    const double qz = rng.uniform() - 0.5 + 1e-3;
+    const double qy = rng.uniform() - 0.5;
+    const double qx = rng.uniform() - 0.5;
+    const double qw = rng.uniform() - 0.5;
+    // Normalised in scalar code in a fixed order (w, x, y, z), not with Eigen's normalized(),
+    // whose vectorised sum differs between SIMD widths (AVX2, AVX-512).
+    const double norm = std::sqrt(std::fma(qz, qz, std::fma(qy, qy, std::fma(qx, qx, qw * qw))));
+    b.orientation = Eigen::Quaterniond(qw / norm, qx / norm, qy / norm, qz / norm);
+    const double size = std::fma(0.1, rng.uniform(), 0.1);
     RigidShapeDesc s;
     switch (i % 4) {
-      case 0:
+      case 0: {
         s.kind = RigidShapeDesc::Kind::Box;
-        s.halfExtents =
-            Point3(0.5 + 0.5 * rng.uniform(), 0.5 + 0.5 * rng.uniform(), 0.5 + 0.5 * rng.uniform()) * (0.5 * size);
+        const double hz = std::fma(0.5, rng.uniform(), 0.5);
+        const double hy = std::fma(0.5, rng.uniform(), 0.5);
+        const double hx = std::fma(0.5, rng.uniform(), 0.5);
+        s.halfExtents = Point3(hx, hy, hz) * (0.5 * size);
         break;
+      }
       case 1:
         s.kind = RigidShapeDesc::Kind::Sphere;
         s.radius = 0.5 * size;
