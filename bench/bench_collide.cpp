@@ -321,18 +321,14 @@ void BM_Peer_Embree_ClothSphereOverlaps(benchmark::State& st) {
 #endif
 
 void meshesAndThreads(benchmark::internal::Benchmark* b) {
-  for (int mesh : {0, 1})
-    for (int threads : {1, 2}) b->Args({mesh, threads});
-  b->ArgNames({"mesh", "threads"})->UseRealTime()->Unit(benchmark::kMicrosecond);
+  weftbench::valuesOnOneAndTwoThreads(b, "mesh", {0, 1}, benchmark::kMicrosecond);
 }
 
 void threads(benchmark::internal::Benchmark* b) {
   b->Arg(1)->Arg(2)->ArgNames({"threads"})->UseRealTime()->Unit(benchmark::kMicrosecond);
 }
 
-#define WEFT_BVH(NAME, S, APPLY)                         \
-  void NAME##_##S(benchmark::State& st) { NAME<S>(st); } \
-  BENCHMARK(NAME##_##S)->Apply(APPLY)
+#define WEFT_BVH(NAME, S, APPLY) WEFT_BENCHMARK_AS(NAME##_##S, APPLY, NAME<S>)
 
 WEFT_BVH(BM_Bvh_Build, float, meshesAndThreads);
 WEFT_BVH(BM_Bvh_Build, double, meshesAndThreads);

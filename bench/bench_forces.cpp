@@ -2,6 +2,7 @@
 // for every strategy, sizes 32^2 .. 256^2, float and double, 1 and 2 threads.
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
 #include "weft/weft.hpp"
 
 namespace {
@@ -30,15 +31,11 @@ void BM_Forces(benchmark::State& st) {
 }
 
 void sizesAndThreads(benchmark::internal::Benchmark* b) {
-  for (int size : {32, 64, 128, 256})
-    for (int threads : {1, 2}) b->Args({size, threads});
-  b->ArgNames({"size", "threads"})->UseRealTime()->Unit(benchmark::kMicrosecond);
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {32, 64, 128, 256}, benchmark::kMicrosecond);
 }
 
 using weft::ForceStrategy;
-#define WEFT_FORCES(NAME, S, STRATEGY)                            \
-  void NAME(benchmark::State& st) { BM_Forces<S, STRATEGY>(st); } \
-  BENCHMARK(NAME)->Apply(sizesAndThreads)
+#define WEFT_FORCES(NAME, S, STRATEGY) WEFT_BENCHMARK_AS(NAME, sizesAndThreads, BM_Forces<S, STRATEGY>)
 
 WEFT_FORCES(BM_Forces_Gather_float, float, ForceStrategy::Gather);
 WEFT_FORCES(BM_Forces_Gather_double, double, ForceStrategy::Gather);

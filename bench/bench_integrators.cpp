@@ -48,15 +48,11 @@ void BM_Integrator(benchmark::State& st) {
 }
 
 void integratorArgs(benchmark::internal::Benchmark* b) {
-  for (int size : {128, 256})
-    for (int threads : {1, 2}) b->Args({size, threads});
-  b->ArgNames({"size", "threads"})->UseRealTime()->Unit(benchmark::kMicrosecond);
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {128, 256}, benchmark::kMicrosecond);
 }
 
 using weft::IntegratorKind;
-#define WEFT_INTEGRATOR(NAME, S, KIND)                            \
-  void NAME(benchmark::State& st) { BM_Integrator<S, KIND>(st); } \
-  BENCHMARK(NAME)->Apply(integratorArgs)
+#define WEFT_INTEGRATOR(NAME, S, KIND) WEFT_BENCHMARK_AS(NAME, integratorArgs, BM_Integrator<S, KIND>)
 
 WEFT_INTEGRATOR(BM_Integrator_Euler_float, float, IntegratorKind::ExplicitEuler);
 WEFT_INTEGRATOR(BM_Integrator_Euler_double, double, IntegratorKind::ExplicitEuler);
@@ -148,13 +144,10 @@ void BM_SimulatedSecond(benchmark::State& st) {
 }
 
 void simulatedSecondArgs(benchmark::internal::Benchmark* b) {
-  for (int threads : {1, 2}) b->Args({128, threads});
-  b->ArgNames({"size", "threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {128}, benchmark::kMillisecond);
 }
 
-#define WEFT_SIMULATED_SECOND(NAME, S, KIND)                           \
-  void NAME(benchmark::State& st) { BM_SimulatedSecond<S, KIND>(st); } \
-  BENCHMARK(NAME)->Apply(simulatedSecondArgs)
+#define WEFT_SIMULATED_SECOND(NAME, S, KIND) WEFT_BENCHMARK_AS(NAME, simulatedSecondArgs, BM_SimulatedSecond<S, KIND>)
 
 WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Symplectic_float, float, IntegratorKind::SymplecticEuler);
 WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Symplectic_double, double, IntegratorKind::SymplecticEuler);

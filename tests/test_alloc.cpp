@@ -1,83 +1,27 @@
 // tests/test_alloc.cpp — a step never allocates.
 //
-// This program replaces every global operator new / new[] (plain, nothrow, aligned,
-// aligned nothrow) with versions that count calls in a thread-safe atomic and forward to
-// malloc / aligned_alloc, and the matching operator deletes with free. Eigen's heap does
-// not go through operator new but through std::malloc, so the build also links this
-// program with `--wrap` for the malloc family (WEFT_TEST_WRAP_MALLOC): every malloc,
-// calloc, realloc, aligned_alloc and posix_memalign made by code linked statically into it
-// (weft, and the Eigen and TBB template code instantiated in weft) is counted as well.
+// This program links the counting global operator new / delete of tests/support/alloc_counter.cpp
+// (every operator new / new[]: plain, nothrow, aligned, aligned nothrow, counted in a thread-safe
+// atomic and forwarded to malloc / aligned_alloc). Eigen's heap does not go through operator
+// new but through std::malloc, so the build also links this program with `--wrap` for the
+// malloc family (WEFT_TEST_WRAP_MALLOC): every malloc, calloc, realloc, aligned_alloc and
+// posix_memalign made by code linked statically into it (weft, and the Eigen and TBB template
+// code instantiated in weft, and the counting operator new itself) is counted as well.
 // Allocations inside shared libraries (libtbb's scheduler, libstdc++) are not seen by the
 // wrappers; any of them made through operator new still is.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdint>
 #include <cstdlib>
 #include <new>
 
+#include "support/alloc_counter.hpp"
 #include "support/test_support.hpp"
 
 namespace {
-std::atomic<long> gNewCalls{0};
 std::atomic<long> gMallocCalls{0};
-
-void* countedNew(std::size_t size) {
-  gNewCalls.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(size == 0 ? 1 : size);
-}
-
-void* countedAlignedNew(std::size_t size, std::align_val_t alignment) {
-  gNewCalls.fetch_add(1, std::memory_order_relaxed);
-  const std::size_t a =
-      static_cast<std::size_t>(alignment) < sizeof(void*) ? sizeof(void*) : static_cast<std::size_t>(alignment);
-  // aligned_alloc wants a size that is a multiple of the alignment.
-  const std::size_t rounded = ((size == 0 ? 1 : size) + a - 1) / a * a;
-  return std::aligned_alloc(a, rounded);
-}
 }  // namespace
-
-// ---- replaced global allocation functions ------------------------------------------------
-// (Every operator new here allocates with malloc / aligned_alloc, so free is the matching
-// release; GCC cannot see that through the replacement and warns after inlining.)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-void* operator new(std::size_t size) {
-  if (void* p = countedNew(size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) {
-  if (void* p = countedNew(size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept { return countedNew(size); }
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept { return countedNew(size); }
-void* operator new(std::size_t size, std::align_val_t alignment) {
-  if (void* p = countedAlignedNew(size, alignment)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size, std::align_val_t alignment) {
-  if (void* p = countedAlignedNew(size, alignment)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t size, std::align_val_t alignment, const std::nothrow_t&) noexcept {
-  return countedAlignedNew(size, alignment);
-}
-void* operator new[](std::size_t size, std::align_val_t alignment, const std::nothrow_t&) noexcept {
-  return countedAlignedNew(size, alignment);
-}
-
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
 
 // ---- the malloc family, via the linker's --wrap -----------------------------------------
 
@@ -119,11 +63,11 @@ namespace weft::test {
 namespace {
 
 struct Counts {
-  long news = 0;
-  long mallocs = 0;
+  std::int64_t news = 0;
+  std::int64_t mallocs = 0;
 };
 
-Counts now() { return {gNewCalls.load(), gMallocCalls.load()}; }
+Counts now() { return {operatorNewCalls(), gMallocCalls.load()}; }
 
 /// Allocation calls made while f() runs (on any thread, for operator new).
 template <class F>
@@ -251,10 +195,8 @@ TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
   for (const IntegratorKind kind : {IntegratorKind::Rk4, IntegratorKind::Rk45, IntegratorKind::ImplicitEuler})
     for (const int threads : {1, 2}) {
       SCOPED_TRACE(::testing::Message() << integratorName(kind) << ", " << threads << " thread(s)");
-      SimulationOptions options;
-      options.integrator = kind;
-      options.threads = threads;
-      options.dt = defaultTimeStep(BuiltinScene::Flag, kFlagSize);
+      SimulationOptions options =
+          flagOptions(kind, ForceStrategy::Auto, threads, defaultTimeStep(BuiltinScene::Flag, kFlagSize));
       options.effects.drag = 1e-3;
       options.effects.wind.enabled = true;
       options.effects.wind.velocity = {3, 0, 2};
@@ -284,10 +226,8 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
   for (const IntegratorKind kind : {IntegratorKind::SymplecticEuler, IntegratorKind::Rk4})
     for (const int threads : {1, 2}) {
       SCOPED_TRACE(::testing::Message() << integratorName(kind) << ", " << threads << " thread(s)");
-      SimulationOptions options;
-      options.integrator = kind;
-      options.threads = threads;
-      options.dt = defaultTimeStep(BuiltinScene::Flag, kFlagSize);
+      SimulationOptions options =
+          flagOptions(kind, ForceStrategy::Auto, threads, defaultTimeStep(BuiltinScene::Flag, kFlagSize));
       options.profileEffects = true;
       CollisionOptions& c = options.collision;
       c.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));

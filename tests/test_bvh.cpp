@@ -5,54 +5,27 @@
 // random, sphere, cloth and degenerate meshes, refit containment, identical results for
 // 1 and 2 threads, and no allocation once warmed up.
 //
-// This program counts global operator new calls (replaced below) to check that warmed-up
-// builds, refits and queries allocate nothing; the BVH keeps its buffers in std::vector.
+// This program counts global operator new calls (tests/support/alloc_counter.hpp, linked in)
+// to check that warmed-up builds, refits and queries allocate nothing; the BVH keeps its
+// buffers in std::vector.
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
-#include <new>
 #include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "support/alloc_counter.hpp"
 #include "support/test_support.hpp"
 #include "weft/collide/bvh.hpp"
 #include "weft/collide/geometry.hpp"
 #include "weft/collide/shapes.hpp"
-
-namespace {
-std::atomic<long> gNewCalls{0};
-}
-
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  gNewCalls.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-void* operator new(std::size_t size, std::align_val_t alignment) {
-  gNewCalls.fetch_add(1, std::memory_order_relaxed);
-  const std::size_t a = std::max(static_cast<std::size_t>(alignment), sizeof(void*));
-  if (void* p = std::aligned_alloc(a, ((size == 0 ? 1 : size) + a - 1) / a * a)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size, std::align_val_t alignment) { return operator new(size, alignment); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace weft::test {
 namespace {
@@ -832,9 +805,9 @@ TYPED_TEST(BvhTyped, NoAllocationOnceWarmedUp) {
     };
     work(moved);  // warm up on the larger result sets first
     work(cloth.x);
-    const long before = gNewCalls.load();
+    const std::int64_t before = operatorNewCalls();
     const std::size_t found = work(cloth.x);
-    EXPECT_EQ(gNewCalls.load() - before, 0) << threads << " threads";
+    EXPECT_EQ(operatorNewCalls() - before, 0) << threads << " threads";
     EXPECT_GT(found, 0u);
   }
 }

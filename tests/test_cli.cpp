@@ -1,11 +1,8 @@
-// tests/test_cli.cpp — the `weft` command line, run as a separate process (popen).
+// tests/test_cli.cpp — the `weft` command line, run as a separate process (support/cli_runner.hpp).
 // WEFT_CLI_PATH is the binary's path, given by CMake ($<TARGET_FILE:weft_cli>).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
 #include <cctype>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -14,6 +11,7 @@
 #include <string>
 #include <weft/io/scene.hpp>
 
+#include "support/cli_runner.hpp"
 #include "support/test_support.hpp"
 
 #ifndef WEFT_CLI_PATH
@@ -23,36 +21,19 @@
 namespace weft::test {
 namespace {
 
-struct CliRun {
-  int exitCode = -1;
-  std::string output;
-};
-
-/// Runs `weft <args>`; `output` is stdout, or stdout and stderr when mergeStderr.
+/// Runs `weft <args>`; `out` is stdout, or stdout and stderr when mergeStderr.
 CliRun weft(const std::string& args, bool mergeStderr) {
-  const std::string command = std::string("'") + WEFT_CLI_PATH + "' " + args + (mergeStderr ? " 2>&1" : " 2>/dev/null");
-  CliRun r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) {
-    ADD_FAILURE() << "popen failed: " << command;
-    return r;
-  }
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-  return r;
+  return runProgram(WEFT_CLI_PATH, args, mergeStderr ? Stderr::Merge : Stderr::Discard);
 }
 
 nlohmann::json runJson(const std::string& args) {
   const CliRun r = weft(args + " --json", false);
-  EXPECT_EQ(r.exitCode, 0) << "weft " << args << " --json\n" << r.output;
+  EXPECT_EQ(r.exitCode, 0) << "weft " << args << " --json\n" << r.out;
   try {
     // The whole of stdout must be exactly one JSON value.
-    return nlohmann::json::parse(r.output);
+    return nlohmann::json::parse(r.out);
   } catch (const std::exception& e) {
-    ADD_FAILURE() << "stdout is not one JSON document (" << e.what() << "):\n" << r.output;
+    ADD_FAILURE() << "stdout is not one JSON document (" << e.what() << "):\n" << r.out;
     return {};
   }
 }
@@ -128,7 +109,7 @@ TEST(Cli, WorkPerStepReportsTheAdaptiveAndImplicitCounters) {
 TEST(Cli, StudyWritesItsTablesWithEveryIntegratorAndAgreesAcrossThreads) {
   const std::string dir = ::testing::TempDir() + "weft_study_test";
   const CliRun r = weft("study --quick --scene oscillator --threads 1 2 --no-plot --out " + dir, false);
-  ASSERT_EQ(r.exitCode, 0) << r.output;
+  ASSERT_EQ(r.exitCode, 0) << r.out;
   std::ifstream csv(dir + "/study.csv");
   ASSERT_TRUE(csv.good());
   std::string header, line;
@@ -189,9 +170,9 @@ TEST(Cli, StateHashIsTheSameForOneAndTwoThreads) {
 
 TEST(Cli, StabilityFailureExitsWithThreeAndNamesTheParticle) {
   const CliRun r = weft("run flag --size 16 --integrator euler --dt 0.01 --steps 100 --json", false);
-  EXPECT_EQ(r.exitCode, 3) << r.output;
-  const nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
-  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_EQ(r.exitCode, 3) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.out;
   EXPECT_NE(j["status"], "ok");
   EXPECT_LT(j["steps"].get<int>(), 100);
   ASSERT_TRUE(j.contains("status_message"));
@@ -314,11 +295,10 @@ class CliBadOption : public ::testing::TestWithParam<BadOption> {};
 TEST_P(CliBadOption, ExitsNonZeroNamingTheOptionAndTheValue) {
   const BadOption& bad = GetParam();
   const CliRun r = weft(std::string("run ") + bad.args + " --steps 1", true);
-  EXPECT_EQ(r.exitCode, 2) << "bad input exits 2 (README)\n" << r.output;
-  EXPECT_NE(r.output.find(bad.option), std::string::npos) << "message does not name " << bad.option << ":\n"
-                                                          << r.output;
-  EXPECT_NE(r.output.find(bad.value), std::string::npos) << "message does not name " << bad.value << ":\n" << r.output;
-  EXPECT_EQ(r.output.find("state_hash"), std::string::npos) << "it ran anyway:\n" << r.output;
+  EXPECT_EQ(r.exitCode, 2) << "bad input exits 2 (README)\n" << r.out;
+  EXPECT_NE(r.out.find(bad.option), std::string::npos) << "message does not name " << bad.option << ":\n" << r.out;
+  EXPECT_NE(r.out.find(bad.value), std::string::npos) << "message does not name " << bad.value << ":\n" << r.out;
+  EXPECT_EQ(r.out.find("state_hash"), std::string::npos) << "it ran anyway:\n" << r.out;
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -352,44 +332,44 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Cli, MessagesAreShortAndSayWhatHappened) {
   // A range without a 300-digit bound, one "weft: " prefix, a reason for a bad --out.
   const CliRun steps = weft("run flag --steps -5", true);
-  EXPECT_LT(steps.output.size(), 200u) << steps.output;
-  const CliRun out = weft("run flag --steps 1 --out /proc/weft-no-such-dir/x", true);
-  EXPECT_NE(out.exitCode, 0);
-  EXPECT_EQ(out.output.find("weft: weft:"), std::string::npos) << out.output;
-  EXPECT_NE(out.output.find("/proc/weft-no-such-dir/x"), std::string::npos) << out.output;
+  EXPECT_LT(steps.out.size(), 200u) << steps.out;
+  const CliRun badOut = weft("run flag --steps 1 --out /proc/weft-no-such-dir/x", true);
+  EXPECT_NE(badOut.exitCode, 0);
+  EXPECT_EQ(badOut.out.find("weft: weft:"), std::string::npos) << badOut.out;
+  EXPECT_NE(badOut.out.find("/proc/weft-no-such-dir/x"), std::string::npos) << badOut.out;
   const CliRun study = weft("study --quick --no-plot --out /proc/weft-no-such-dir", true);
-  EXPECT_EQ(study.exitCode, 2) << study.output;
-  EXPECT_NE(study.output.find("cannot create the output directory '/proc/weft-no-such-dir'"), std::string::npos)
-      << study.output;
-  EXPECT_EQ(study.output.find("filesystem error"), std::string::npos) << study.output;
+  EXPECT_EQ(study.exitCode, 2) << study.out;
+  EXPECT_NE(study.out.find("cannot create the output directory '/proc/weft-no-such-dir'"), std::string::npos)
+      << study.out;
+  EXPECT_EQ(study.out.find("filesystem error"), std::string::npos) << study.out;
 }
 
 TEST(Cli, MoreThreadsThanTheMachineRunsAreReportedAsRun) {
   const CliRun r = weft("run rope --steps 2 --threads 999", true);
-  EXPECT_EQ(r.exitCode, 0) << r.output;
-  EXPECT_EQ(r.output.find("999 thread(s)"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("(999 asked for: the most this machine runs)"), std::string::npos) << r.output;
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_EQ(r.out.find("999 thread(s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(999 asked for: the most this machine runs)"), std::string::npos) << r.out;
 }
 
 TEST(Cli, HelpNamesEveryBuiltInSceneAndSceneFiles) {
   const CliRun r = weft("run --help", true);
   EXPECT_EQ(r.exitCode, 0);
-  for (const std::string& name : builtinSceneNames()) EXPECT_NE(r.output.find(name), std::string::npos) << name;
-  EXPECT_NE(r.output.find("JSON scene file"), std::string::npos);
+  for (const std::string& name : builtinSceneNames()) EXPECT_NE(r.out.find(name), std::string::npos) << name;
+  EXPECT_NE(r.out.find("JSON scene file"), std::string::npos);
   const CliRun top = weft("--help", true);
-  EXPECT_NE(top.output.find("scene file"), std::string::npos) << top.output;
+  EXPECT_NE(top.out.find("scene file"), std::string::npos) << top.out;
 }
 
 TEST(Cli, MemoryIsAskedForBeforeItIsTaken) {
   // A billion particles: refused with what it would need, before anything is allocated.
   const CliRun huge = weft("run flag --size 32768", true);
-  EXPECT_EQ(huge.exitCode, 2) << huge.output;
-  EXPECT_NE(huge.output.find("needs about"), std::string::npos) << huge.output;
-  EXPECT_NE(huge.output.find("GiB (1073741824 particles"), std::string::npos) << huge.output;
-  EXPECT_EQ(huge.output.find("bad_alloc"), std::string::npos) << huge.output;
+  EXPECT_EQ(huge.exitCode, 2) << huge.out;
+  EXPECT_NE(huge.out.find("needs about"), std::string::npos) << huge.out;
+  EXPECT_NE(huge.out.find("GiB (1073741824 particles"), std::string::npos) << huge.out;
+  EXPECT_EQ(huge.out.find("bad_alloc"), std::string::npos) << huge.out;
   const CliRun capped = weft("run flag --size 512 --max-memory 100", true);
-  EXPECT_EQ(capped.exitCode, 2) << capped.output;
-  EXPECT_NE(capped.output.find("--max-memory allows 100 MiB"), std::string::npos) << capped.output;
+  EXPECT_EQ(capped.exitCode, 2) << capped.out;
+  EXPECT_NE(capped.out.find("--max-memory allows 100 MiB"), std::string::npos) << capped.out;
 }
 
 TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
@@ -410,7 +390,7 @@ TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
 
 TEST(Cli, NoSubcommandIsAnError) {
   const CliRun r = weft("", true);
-  EXPECT_NE(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.exitCode, 0) << r.out;
 }
 
 }  // namespace

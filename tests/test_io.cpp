@@ -35,18 +35,6 @@ std::string readAll(const std::string& path) {
   return text.str();
 }
 
-/// The message of the exception `f` throws (fails the test if it throws none).
-template <class Exception = std::exception>
-std::string thrownMessage(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Exception& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no exception thrown";
-  return {};
-}
-
 template <class S>
 S parseScalar(const std::string& text) {
   if constexpr (std::is_same_v<S, float>)

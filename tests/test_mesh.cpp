@@ -22,7 +22,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <iterator>
 #include <limits>
 #include <map>
@@ -56,22 +55,6 @@ std::string tempFile(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + "weft_mesh_" + name;
   std::ofstream(path, std::ios::binary) << text;
   return path;
-}
-
-/// The message of the `Exception` that f() throws (fails the test if it throws none, or
-/// another type).
-template <class Exception>
-std::string thrownMessage(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Exception& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "threw another exception type: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no exception thrown";
-  return {};
 }
 
 /// A (w x h)-quad grid in the z = 0 plane, `spacing` apart, two triangles per quad wound

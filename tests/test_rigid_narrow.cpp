@@ -62,6 +62,18 @@ ConvexHull randomHull(std::mt19937_64& rng) {
   return makeConvexHull(points);
 }
 
+/// The hull of an upright prism on a regular `sides`-gon: corners at `radius` from the y axis,
+/// caps at y = -halfHeight and y = halfHeight.
+ConvexHull prismHull(int sides, double radius, double halfHeight) {
+  std::vector<Vector3d> points;
+  for (int k = 0; k < sides; ++k) {
+    const double t = 2 * M_PI * k / sides;
+    points.emplace_back(radius * std::cos(t), -halfHeight, radius * std::sin(t));
+    points.emplace_back(radius * std::cos(t), halfHeight, radius * std::sin(t));
+  }
+  return makeConvexHull(points);
+}
+
 std::vector<Vector3d> worldVertices(const ConvexHull& h, const Pose& pose) {
   std::vector<Vector3d> out;
   for (const Vector3d& v : h.vertices) out.push_back(pose.rotation * v + pose.position);
@@ -464,13 +476,7 @@ TEST(RigidNarrow, FeatureIdsStableUnderSmallMotion) {
 TEST(RigidNarrow, ManyPointsReducedToFour) {
   // A 16-gon prism lying on a box: the clipped polygon has 16 points, four are kept: the
   // deepest among them (up to 0.1 mm), spread over the face.
-  std::vector<Vector3d> points;
-  for (int k = 0; k < 16; ++k) {
-    const double t = 2 * M_PI * k / 16;
-    points.emplace_back(0.5 * std::cos(t), -0.3, 0.5 * std::sin(t));
-    points.emplace_back(0.5 * std::cos(t), 0.3, 0.5 * std::sin(t));
-  }
-  const ConvexHull prism = makeConvexHull(points);
+  const ConvexHull prism = prismHull(16, 0.5, 0.3);
   const ConvexHull ground = makeBoxHull(Vector3d(2, 0.5, 2));
   const Pose pb = makePose(rotationAbout(Vector3d(1, 0, 0.5), 1e-3), Vector3d(0, 0.5 + 0.3 - 0.001, 0));
   const ContactManifold m = collide(ground, Pose{}, prism, pb, 0.01, NarrowPhaseMethod::Exact);
@@ -493,13 +499,7 @@ TEST(RigidNarrow, ManyPointsReducedToFour) {
 TEST(RigidNarrow, FacesWithManyVertices) {
   // A 200-gon prism (caps beyond the 128 vertices a clipped polygon keeps: subsampled)
   // standing on a box, and a box standing on its cap: four points at the right depth.
-  std::vector<Vector3d> points;
-  for (int k = 0; k < 200; ++k) {
-    const double t = 2 * M_PI * k / 200;
-    points.emplace_back(0.6 * std::cos(t), -0.2, 0.6 * std::sin(t));
-    points.emplace_back(0.6 * std::cos(t), 0.2, 0.6 * std::sin(t));
-  }
-  const ConvexHull prism = makeConvexHull(points);
+  const ConvexHull prism = prismHull(200, 0.6, 0.2);
   ASSERT_EQ(prism.faceCount(), 202);
   const ConvexHull ground = makeBoxHull(Vector3d(2, 0.5, 2));
   const ConvexHull box = makeBoxHull(Vector3d(0.3, 0.3, 0.3));

@@ -1,9 +1,11 @@
 // tests/support/test_support.hpp — helpers shared by the weft test executables.
 //
 // Scalar-type and integrator parameterisation, scalar-dependent tolerances, seeded random
-// perturbations, and the small scenes the property tests use (a single damped oscillator,
-// a flag without pins). Everything is header-only so that each test file stays its own
-// executable with no extra library.
+// perturbations, the message of an expected exception, and the small scenes the property
+// tests use (a single damped oscillator, a flag without pins). Everything is header-only so
+// that each test file stays its own executable with no extra library. (What replaces global
+// functions or runs programs, alloc_counter and cli_runner, is compiled in the libraries of
+// this folder's CMakeLists.txt and linked by the programs that need it.)
 #pragma once
 
 #include <gtest/gtest.h>
@@ -11,6 +13,8 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <memory>
@@ -122,6 +126,26 @@ std::array<long double, 3> momentum(const Model<S>& model, const State<S>& state
   for (Index i = 0; i < model.particleCount(); ++i)
     for (int c = 0; c < 3; ++c) p[c] += static_cast<long double>(model.mass()[i]) * state.v(i, c);
   return p;
+}
+
+// ---------------------------------------------------------------------------------------
+// Exceptions
+// ---------------------------------------------------------------------------------------
+
+/// The message of the `Exception` that f() throws (fails the test if it throws none, or
+/// another type).
+template <class Exception>
+std::string thrownMessage(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Exception& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "threw another exception type: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "no exception thrown";
+  return {};
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,8 +1,11 @@
 // Internal: inline definitions of the closest-point functions of weft/collide/geometry.hpp,
 // shared by geometry.cpp (which instantiates the public templates) and bvh.cpp (whose
-// closest-triangle query inlines them).
+// closest-triangle query inlines them), and the segment-segment closest points shared by
+// the contact pass's edge test (mesh_queries.cpp) and the rigid narrow phase's edge
+// contacts (contact_manifold.cpp).
 #pragma once
 
+#include <algorithm>
 #include <limits>
 
 #include "weft/collide/geometry.hpp"
@@ -84,6 +87,47 @@ inline Vec3<S> closestOnTriangle(const Vec3<S>& p, const Vec3<S>& a, const Vec3<
   const S v = vb / den;
   const S w = vc / den;
   return a + v * ab + w * ac;
+}
+
+inline double dot(const Vec3<double>& a, const Vec3<double>& b) { return a.dot(b); }
+inline double dot(const Vec3<double>& a) { return a.squaredNorm(); }
+
+/// Closest points of the segments p1 q1 and p2 q2 (Ericson, Real-Time Collision Detection,
+/// 5.1.9): parameters s, t in [0, 1] and the points c1, c2; returns the squared distance.
+/// A segment shorter than 1e-150 counts as a point; of parallel segments, s = 0 is taken.
+/// Vec is Vec3<double> or the contact pass's own 3-vector (with a free dot() found by ADL).
+template <class Vec>
+inline double closestSegmentSegment(const Vec& p1, const Vec& q1, const Vec& p2, const Vec& q2, double& s, double& t,
+                                    Vec& c1, Vec& c2) {
+  constexpr double tiny = 1e-300;  // squared length
+  const Vec d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
+  const double a = dot(d1), e = dot(d2), f = dot(d2, r);
+  s = t = 0;
+  if (a <= tiny && e <= tiny) {
+    // two points
+  } else if (a <= tiny) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = dot(d1, r);
+    if (e <= tiny) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = dot(d1, d2), denom = a * e - b * b;
+      s = denom > 0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1) {
+        t = 1;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  c1 = p1 + s * d1;
+  c2 = p2 + t * d2;
+  const Vec gap = c1 - c2;
+  return dot(gap, gap);
 }
 
 }  // namespace weft::detail

@@ -26,6 +26,7 @@ inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
 inline V operator*(double s, V a) { return {s * a.x, s * a.y, s * a.z}; }
 inline double dot(V a, V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline double dot(V a) { return dot(a, a); }
 inline double norm(V a) { return std::sqrt(dot(a, a)); }
 inline V v(const Vec3d& a) { return {a.x, a.y, a.z}; }
 

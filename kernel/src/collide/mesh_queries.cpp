@@ -1,6 +1,8 @@
 // Queries against mesh obstacles (see mesh_queries.hpp).
 #include "mesh_queries.hpp"
 
+#include "closest_point.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -63,40 +65,6 @@ double windingNumber(const MeshCollider& c, V p) {
     total += 2 * std::atan2(det, div);
   }
   return total / (4 * 3.14159265358979323846);
-}
-
-
-// Closest points of the segments p1 q1 and p2 q2 (Ericson, Real-Time Collision Detection,
-// 5.1.9): parameters s, t in [0, 1] and the points c1, c2; returns the squared distance.
-double closestSegmentSegment(V p1, V q1, V p2, V q2, double& s, double& t, V& c1, V& c2) {
-  const V d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
-  const double a = dot(d1, d1), e = dot(d2, d2), f = dot(d2, r);
-  if (a == 0 && e == 0) {
-    s = t = 0;
-  } else if (a == 0) {
-    s = 0;
-    t = std::clamp(f / e, 0.0, 1.0);
-  } else {
-    const double c = dot(d1, r);
-    if (e == 0) {
-      t = 0;
-      s = std::clamp(-c / a, 0.0, 1.0);
-    } else {
-      const double b = dot(d1, d2), denom = a * e - b * b;
-      s = denom > 0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;  // parallel: any s, take 0
-      t = (b * s + f) / e;
-      if (t < 0) {
-        t = 0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-      } else if (t > 1) {
-        t = 1;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-      }
-    }
-  }
-  c1 = p1 + s * d1;
-  c2 = p2 + t * d2;
-  return dot(c1 - c2, c1 - c2);
 }
 
 

@@ -24,10 +24,6 @@ V pushOutOfMesh(const MeshCollider& c, V p, V side, double h);
 /// Generalised winding number of a closed mesh about p (1 inside, 0 outside).
 double windingNumber(const MeshCollider& c, V p);
 
-/// Closest points of the segments p1 q1 and p2 q2 (parameters s, t, points c1, c2);
-/// returns the squared distance.
-double closestSegmentSegment(V p1, V q1, V p2, V q2, double& s, double& t, V& c1, V& c2);
-
 // The mesh edge closest to the segment A B, among the triangles whose boxes overlap `box`.
 struct EdgeProbe {
   double distance = std::numeric_limits<double>::infinity();
