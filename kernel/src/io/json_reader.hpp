@@ -2,8 +2,10 @@
 //
 // Reader knows the path of every value it reads and rejects unknown keys, wrong types,
 // non-finite numbers and out-of-range values with the source, the field path and the
-// value in the message; JsonPathTracker follows nlohmann's parser to name the field of a
-// syntax error and rejects duplicate keys and deep nesting.
+// value in the message; where a range is the kernel's, Reader::kernelRules runs the
+// kernel's validator and reports what it refuses the same way, so that the rule lives
+// once. JsonPathTracker follows nlohmann's parser to name the field of a syntax error and
+// rejects duplicate keys and deep nesting.
 #pragma once
 
 #include <algorithm>
@@ -13,11 +15,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <initializer_list>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "io_text.hpp"
 #include "weft/io/scene.hpp"
 
 namespace weft::io_detail {
@@ -32,27 +38,6 @@ constexpr std::size_t kMaxJsonDepth = 32;  // a scene nests 7 levels deep
 inline std::string shortDump(const Json& j) {
   std::string s = j.dump(-1, ' ', /*ensure_ascii=*/true);
   if (s.size() > 60) s = s.substr(0, 57) + "...";
-  return s;
-}
-
-/// The shortest decimal that reads back as v: "0.1", "1e-09", "200".
-inline std::string fmt(double v) {
-  char buffer[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
-    if (std::strtod(buffer, nullptr) == v) break;
-  }
-  return buffer;
-}
-
-inline std::string fmt(const Vec3d& v) {
-  std::string s = "[";  // (appended, not "[" + ...: GCC 12 warns about that falsely, -Wrestrict)
-  s += fmt(v.x);
-  s += ", ";
-  s += fmt(v.y);
-  s += ", ";
-  s += fmt(v.z);
-  s += "]";
   return s;
 }
 
@@ -207,6 +192,11 @@ class Reader {
     if (v < low || v > high) fail(f, range + shortDump(j));
     return v;
   }
+  /// An integer in int's range whose rule the kernel checks (kernelRules).
+  int anyInt(const Json& parent, const std::string& field, const char* key, int fallback) const {
+    return static_cast<int>(
+        integer(parent, field, key, fallback, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
+  }
   bool boolean(const Json& parent, const std::string& field, const char* key, bool fallback) const {
     if (!parent.contains(key)) return fallback;
     const Json& j = parent[key];
@@ -266,34 +256,105 @@ class Reader {
     return m;
   }
 
+  /// Runs `validate`, one of the kernel's validators or parsers (validateEffects,
+  /// parseIntegrator, ...) on what this section of the file gave, so that a rule lives
+  /// once, in the kernel: what it refuses (std::invalid_argument) becomes an error of the
+  /// file (kernelFail).
+  template <class Validate>
+  void kernelRules(const Json& section, const std::string& field, const std::string& kernelPrefix, Validate&& validate,
+                   std::initializer_list<std::pair<const char*, const char*>> renames = {}) const {
+    try {
+      validate();
+    } catch (const std::invalid_argument& e) {
+      kernelFail(section, field, kernelPrefix, e.what(), renames);
+    }
+  }
+
+  /// A kernel's message "<member> must be <rule>, got <value>" as an error of the file. The
+  /// member is a C++ path below `kernelPrefix` ("effects.wind.gustModes" below "effects.");
+  /// in the file it is the same path below `field`, spelt as the file spells it: a name
+  /// in `renames` as given there (a whole path: {"relativeTolerance", "rtol"}), any other
+  /// in snake_case, ".x", ".y", ".z" as "[0]", "[1]", "[2]". The value is the file's as
+  /// written where the file gave that member and the kernel's value is the same one, else
+  /// the kernel's number in this file's spelling (fmt). A message of another shape is
+  /// reported at `field` as it is, less `kernelPrefix`.
+  [[noreturn]] void kernelFail(const Json& section, const std::string& field, const std::string& kernelPrefix,
+                               const std::string& message,
+                               std::initializer_list<std::pair<const char*, const char*>> renames = {}) const {
+    const bool prefixed = message.compare(0, kernelPrefix.size(), kernelPrefix) == 0;
+    const std::string rest = prefixed ? message.substr(kernelPrefix.size()) : message;
+    const std::size_t must = rest.find(" must be ");
+    std::string member = rest.substr(0, must);
+    for (const auto& [kernel, file] : renames)
+      if (member == kernel) member = file;
+    const bool isPath =
+        must != std::string::npos && !member.empty() && std::all_of(member.begin(), member.end(), [](unsigned char c) {
+          return std::isalnum(c) || c == '_' || c == '.' || c == '[' || c == ']';
+        });
+    if (!prefixed || !isPath) fail(field, rest);
+    // The member's path in the file's spelling, and its value in the file (if it gave it).
+    std::string path = field;
+    const Json* value = &section;
+    const auto element = [&](std::size_t k) {
+      path += '[';  // (appended piece by piece: operator+ on temporaries trips GCC 12's -Wrestrict)
+      path += std::to_string(k);
+      path += ']';
+      value = value && value->is_array() && k < value->size() ? &(*value)[k] : nullptr;
+    };
+    for (std::size_t at = 0; at < member.size();) {
+      if (member[at] == '.') {
+        ++at;
+        continue;
+      }
+      if (member[at] == '[') {
+        element(std::strtoul(member.c_str() + at + 1, nullptr, 10));
+        at = std::min(member.find(']', at), member.size() - 1) + 1;
+        continue;
+      }
+      const std::size_t end = std::min(member.find_first_of(".[", at), member.size());
+      const std::string name = member.substr(at, end - at);
+      at = end;
+      if (name == "x" || name == "y" || name == "z") {
+        element(static_cast<std::size_t>(name[0] - 'x'));
+        continue;
+      }
+      std::string key;
+      for (const char c : name) {
+        if (std::isupper(static_cast<unsigned char>(c))) {
+          key += '_';
+          key += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        } else {
+          key += c;
+        }
+      }
+      path = join(path, key);
+      value = value && value->is_object() && value->contains(key) ? &(*value)[key] : nullptr;
+    }
+    std::string what = rest.substr(must + 1);  // "must be <rule>, got <value>"
+    const std::size_t got = what.rfind(" got ");
+    if (got != std::string::npos) {
+      const std::string kernelValue = what.substr(got + 5);
+      std::string written;
+      char* end = nullptr;
+      const double number = std::strtod(kernelValue.c_str(), &end);
+      const auto quoted = [&](const std::string& text) {  // 'text', as the kernel quotes names
+        return kernelValue.size() == text.size() + 2 && kernelValue.front() == '\'' && kernelValue.back() == '\'' &&
+               kernelValue.compare(1, text.size(), text) == 0;
+      };
+      if (value && value->is_string() && quoted(value->get<std::string>()))
+        written = shortDump(*value);
+      else if (!kernelValue.empty() && end == kernelValue.c_str() + kernelValue.size())
+        written = value && value->is_number() && value->get<double>() == number ? shortDump(*value) : fmt(number);
+      if (!written.empty()) {
+        what.resize(got + 5);
+        what += written;
+      }
+    }
+    fail(path, what);
+  }
+
  private:
   std::string source_;
 };
-
-/// A kinematic path: {velocity, angular_velocity, axis, center, start, end}.
-inline KinematicPath readPath(const Reader& r, const Json& j, const std::string& f) {
-  r.object(j, f, {"velocity", "angular_velocity", "axis", "center", "start", "end"});
-  KinematicPath p;
-  p.velocity = r.vector(j, f, "velocity", p.velocity);
-  p.angularVelocity = r.anyNumber(j, f, "angular_velocity", 0);
-  p.axis = r.vector(j, f, "axis", p.axis);
-  p.center = r.vector(j, f, "center", p.center);
-  p.startTime = r.number(j, f, "start", 0, 0, true, " s");
-  if (j.contains("end")) {
-    p.endTime = r.number(j["end"], Reader::join(f, "end"));
-    if (!(p.endTime >= p.startTime))
-      r.fail(Reader::join(f, "end"), "must be >= start (" + fmt(p.startTime) + " s), got " + shortDump(j["end"]));
-  }
-  // The simulation normalises the axis: its length must be finite and non-zero (an
-  // infinite one would normalise to 0 and shrink the pinned set instead of turning it).
-  Vec3d unit;
-  if (p.angularVelocity != 0 && !normalised(p.axis, unit))
-    r.fail(Reader::join(f, "axis"),
-           "must be a vector of finite non-zero length when angular_velocity is not 0, got " + fmt(p.axis));
-  return p;
-}
-
-/// The `rigid_bodies` section (scene_rigid.cpp).
-RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& field);
 
 }  // namespace weft::io_detail

@@ -11,8 +11,9 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
+
+#include "io_text.hpp"
 
 namespace weft {
 
@@ -106,12 +107,9 @@ TriangleMesh cleaned(const TriangleMesh& raw, const std::string& path, const Mes
 }
 
 void checkCleanOptions(const MeshCleanOptions& options) {
-  if (!(std::isfinite(options.weldTolerance) && options.weldTolerance >= 0)) {
-    std::ostringstream msg;
-    msg.precision(17);
-    msg << "loadCleanMesh: MeshCleanOptions.weldTolerance must be finite and >= 0 (m), got " << options.weldTolerance;
-    throw std::invalid_argument(msg.str());
-  }
+  if (!(std::isfinite(options.weldTolerance) && options.weldTolerance >= 0))
+    throw std::invalid_argument("loadCleanMesh: MeshCleanOptions.weldTolerance must be finite and >= 0 (m), got " +
+                                io_detail::fmt(options.weldTolerance));
 }
 
 }  // namespace

@@ -1,11 +1,11 @@
 // The `rigid_bodies` section of a scene file (docs/scenes.md): solver settings and bodies
-// made of convex pieces. Ranges are the kernel's (validateRigidOptions), checked here
-// with the file and field path in the message.
+// made of convex pieces. Ranges are the kernel's (validateRigidOptions), reported with the
+// file and the field path (Reader::kernelRules); the reader adds its own caps on counts.
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "json_reader.hpp"
+#include "scene_internal.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
 namespace weft::io_detail {
@@ -59,13 +59,11 @@ RigidShapeDesc readShape(const Reader& r, const Json& e, const std::string& f) {
     if (!e.contains("half_extents")) r.fail(Reader::join(f, "half_extents"), "is required for a box");
     s.kind = RigidShapeDesc::Kind::Box;
     s.halfExtents = eigen(r.vector(e, f, "half_extents", {}));
-    if (!(s.halfExtents.minCoeff() > 0))
-      r.fail(Reader::join(f, "half_extents"), "must be > 0 m in every axis, got " + shortDump(e["half_extents"]));
   } else if (type == "sphere") {
     r.object(e, f, {"type", "radius", "offset", "rotation"});
     if (!e.contains("radius")) r.fail(Reader::join(f, "radius"), "is required for a sphere");
     s.kind = RigidShapeDesc::Kind::Sphere;
-    s.radius = r.number(e, f, "radius", 0, 0, false, " m");
+    s.radius = r.anyNumber(e, f, "radius", 0);
   } else {
     r.object(e, f, {"type", "points", "offset", "rotation"});
     const std::string fp = Reader::join(f, "points");
@@ -119,27 +117,25 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
                          : method == "ofg" ? NarrowPhaseMethod::Ofg
                                            : NarrowPhaseMethod::Witness;
   o.narrowPhase.ofgFaces = static_cast<int>(r.integer(j, f, "ofg_faces", o.narrowPhase.ofgFaces, 1, 1024));
-  o.substeps = static_cast<int>(r.integer(j, f, "substeps", o.substeps, 1, 1024));
+  o.substeps = r.anyInt(j, f, "substeps", o.substeps);
   o.velocityIterations = static_cast<int>(r.integer(j, f, "velocity_iterations", o.velocityIterations, 1, 1000));
   o.positionIterations = static_cast<int>(r.integer(j, f, "position_iterations", o.positionIterations, 0, 1000));
-  o.speculativeDistance = r.number(j, f, "speculative_distance", o.speculativeDistance, 0, true, " m");
+  o.speculativeDistance = r.anyNumber(j, f, "speculative_distance", o.speculativeDistance);
   o.continuous = r.boolean(j, f, "continuous", o.continuous);
-  o.linearSlop = r.number(j, f, "linear_slop", o.linearSlop, 0, true, " m");
-  o.penetrationRate = r.number(j, f, "penetration_rate", o.penetrationRate, 0, false, "");
-  if (o.penetrationRate > 1)
-    r.fail(Reader::join(f, "penetration_rate"), "must be <= 1, got " + shortDump(j["penetration_rate"]));
-  o.maxPushVelocity = r.number(j, f, "max_push_velocity", o.maxPushVelocity, 0, false, " m/s");
-  o.restitutionThreshold = r.number(j, f, "restitution_threshold", o.restitutionThreshold, 0, true, " m/s");
-  o.staticSpeed = r.number(j, f, "static_speed", o.staticSpeed, 0, true, " m/s");
+  o.linearSlop = r.anyNumber(j, f, "linear_slop", o.linearSlop);
+  o.penetrationRate = r.anyNumber(j, f, "penetration_rate", o.penetrationRate);
+  o.maxPushVelocity = r.anyNumber(j, f, "max_push_velocity", o.maxPushVelocity);
+  o.restitutionThreshold = r.anyNumber(j, f, "restitution_threshold", o.restitutionThreshold);
+  o.staticSpeed = r.anyNumber(j, f, "static_speed", o.staticSpeed);
   o.maxPairs = static_cast<Index>(r.integer(j, f, "max_pairs", 0, 0, Index(1) << 28));
   o.particleContacts = r.boolean(j, f, "particle_contacts", o.particleContacts);
   o.particleSupports = r.boolean(j, f, "particle_supports", o.particleSupports);
   o.timeOfImpact = r.choice(j, f, "time_of_impact", "speculative", {"speculative", "rollback"}) == "rollback"
                        ? RigidTimeOfImpact::Rollback
                        : RigidTimeOfImpact::Speculative;
-  o.rollbackPenetration = r.number(j, f, "rollback_penetration", o.rollbackPenetration, 0, false, " m");
-  o.maxHalvings = static_cast<int>(r.integer(j, f, "max_halvings", o.maxHalvings, 0, 30));
-  o.particleThickness = r.number(j, f, "particle_thickness", o.particleThickness, 0, false, " m");
+  o.rollbackPenetration = r.anyNumber(j, f, "rollback_penetration", o.rollbackPenetration);
+  o.maxHalvings = r.anyInt(j, f, "max_halvings", o.maxHalvings);
+  o.particleThickness = r.anyNumber(j, f, "particle_thickness", o.particleThickness);
   const std::string fb = Reader::join(f, "bodies");
   if (!j.contains("bodies")) r.fail(fb, "is required: a non-empty array of rigid bodies");
   const Json& list = j["bodies"];
@@ -165,19 +161,13 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
       r.fail(fs, std::string("must be a non-empty array, got ") + typeName(shapes) + " " + shortDump(shapes));
     for (std::size_t s = 0; s < shapes.size(); ++s)
       b.shapes.push_back(readShape(r, shapes[s], fs + "[" + std::to_string(s) + "]"));
-    b.density = r.number(e, fk, "density", b.density, 0, false, " kg/m^3");
-    b.mass = r.number(e, fk, "mass", 0, 0, true, " kg");
+    b.density = r.anyNumber(e, fk, "density", b.density);
+    b.mass = r.anyNumber(e, fk, "mass", 0);
     b.position = eigen(r.vector(e, fk, "position", {0, 0, 0}));
     b.orientation = readRotation(r, e, fk, "orientation");
     b.velocity = eigen(r.vector(e, fk, "velocity", {0, 0, 0}));
     b.angularVelocity = eigen(r.vector(e, fk, "angular_velocity", {0, 0, 0}));
-    b.staticFriction = r.number(e, fk, "static_friction", b.staticFriction, 0, true, "");
-    b.kineticFriction = r.number(e, fk, "kinetic_friction", std::min(b.kineticFriction, b.staticFriction), 0, true, "");
-    if (b.kineticFriction > b.staticFriction)
-      r.fail(Reader::join(fk, "kinetic_friction"),
-             "must be <= static_friction (" + fmt(b.staticFriction) + "), got " + fmt(b.kineticFriction));
-    b.restitution = r.number(e, fk, "restitution", b.restitution, 0, true, "");
-    if (b.restitution > 1) r.fail(Reader::join(fk, "restitution"), "must be <= 1, got " + shortDump(e["restitution"]));
+    readSurface(r, e, fk, b);
     if (e.contains("path")) {
       if (b.motion != BodyMotion::Kinematic)
         r.fail(Reader::join(fk, "path"), "is for kinematic bodies only (motion is " + motion + ")");
@@ -185,15 +175,13 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
     }
     o.bodies.push_back(std::move(b));
   }
-  // Whatever the reader let through, the kernel's own rules (and hull building) decide.
-  try {
-    validateRigidOptions(o);
-    (void)buildRigidModel(o.bodies);
-  } catch (const std::invalid_argument& e) {
-    std::string what = e.what();
-    if (what.rfind("rigid.", 0) == 0) what = what.substr(6);
-    r.fail(f, what);
-  }
+  // Ranges are the kernel's own rules (and hull building's), named by their fields here.
+  r.kernelRules(j, f, "rigid.",
+                [&] {
+                  validateRigidOptions(o);
+                  (void)buildRigidModel(o.bodies);
+                },
+                {{"narrowPhase.ofgFaces", "ofg_faces"}});
   return o;
 }
 

@@ -1,0 +1,88 @@
+// What a scene will take, asked before it is assembled: its step count (sceneStepCount)
+// and its particles, springs, triangles and heap (estimateSceneMemory), so that the
+// command line can refuse or warn about a scene before building it.
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+
+#include "scene_internal.hpp"
+
+namespace weft {
+
+namespace {
+// Heap bytes of an assembled Simulation per particle and per spring, by integrator, for
+// double and float: measured with mallinfo2() after assembling and stepping the flag
+// (256^2) and the rope (16384) with each integrator and solved for the two rates with 12
+// bytes per triangle (three indices); the integrators differ in the state-sized buffers
+// they keep (RK4 four stages, RK45 seven, implicit Euler its CG vectors and a 3x3 block
+// per spring).
+struct Rates {
+  double particle, spring;
+};
+Rates memoryRates(IntegratorKind kind, bool isFloat) {
+  switch (kind) {
+    case IntegratorKind::ExplicitEuler:
+    case IntegratorKind::SymplecticEuler:
+      return isFloat ? Rates{66, 38} : Rates{122, 62};
+    case IntegratorKind::Midpoint:
+    case IntegratorKind::VelocityVerlet:
+      return isFloat ? Rates{90, 38} : Rates{170, 62};
+    case IntegratorKind::Rk4:
+      return isFloat ? Rates{138, 38} : Rates{266, 62};
+    case IntegratorKind::Rk45:
+      return isFloat ? Rates{259, 38} : Rates{506, 62};
+    case IntegratorKind::ImplicitEuler:
+      return isFloat ? Rates{158, 82} : Rates{302, 142};
+  }
+  return {506, 142};  // the largest
+}
+constexpr double kBytesPerTriangle = 12;
+// Resident memory a rigid body's share of the world takes while a pile of them collides
+// (pairs, caches, manifolds, constraints), measured on the `pile` (1005 bodies: 6.5 MB).
+constexpr double kBytesPerRigidBody = 6500;
+}  // namespace
+
+MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
+  MemoryEstimate e;
+  for (const BodySpec& body : scene.bodies) {
+    switch (body.kind) {
+      case BodyKind::ClothGrid: {
+        const std::int64_t w = std::max<std::int64_t>(body.grid.width, 0),
+                           h = std::max<std::int64_t>(body.grid.height, 0);
+        e.particles += w * h;
+        for (const Index n : expectedGridSpringCounts(body.grid)) e.springs += std::max<Index>(n, 0);
+        e.triangles += 2 * std::max<std::int64_t>(w - 1, 0) * std::max<std::int64_t>(h - 1, 0);
+        break;
+      }
+      case BodyKind::Rope: {
+        const std::int64_t n = std::max<std::int64_t>(body.rope.particleCount, 0);
+        e.particles += n;
+        e.springs += std::max<std::int64_t>(n - 1, 0) + (body.rope.bendSprings ? std::max<std::int64_t>(n - 2, 0) : 0);
+        break;
+      }
+      case BodyKind::ClothMesh:
+        ++e.meshBodies;
+        e.readsMeshes = true;
+        break;
+    }
+  }
+  e.rigidBodies = static_cast<std::int64_t>(scene.simulation.rigid.bodies.size());
+  e.readsMeshes = e.readsMeshes || !scene.meshObstacles.empty();
+  const Rates r = memoryRates(scene.simulation.integrator, scene.precision == Precision::Float);
+  e.bytes = r.particle * static_cast<double>(e.particles) + r.spring * static_cast<double>(e.springs) +
+            kBytesPerTriangle * static_cast<double>(e.triangles) +
+            kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
+  return e;
+}
+
+std::int64_t sceneStepCount(const SceneSpec& scene) {
+  if (scene.steps > 0) return scene.steps;
+  if (scene.duration > 0 && scene.simulation.dt > 0) {
+    // The reader caps the count at 2^40; a SceneSpec filled in C++ with a larger one saturates.
+    const double n = io_detail::durationStepCount(scene.duration, scene.simulation.dt);
+    return n < 9.2e18 ? static_cast<std::int64_t>(n) : std::numeric_limits<std::int64_t>::max();
+  }
+  return 0;
+}
+
+}  // namespace weft
