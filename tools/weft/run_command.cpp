@@ -343,16 +343,15 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["state_hash"] = hash;
     j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
     j["lowest_y"] = lowest;
-    if (const weft::ContactSolver<S>* contacts = sim.contactSolver()) {
+    if (sim.contactSolver()) {
       // At the end of the run: particles in contact, the deepest penetration (m); over the
       // run: chunks rolled back, and particles that ended beyond a thin obstacle or inside one.
-      const weft::ScalarArray<S>& w = model.inverseMass();
-      const double t = state.time - initial->time;
-      j["contacts"] = contacts->countContacts(state.x, w, t);
-      j["max_penetration"] = contacts->penetration(state.x, w, t);
+      const weft::ContactReport report = sim.contactReport(&*initial);
+      j["contacts"] = report.contacts;
+      j["max_penetration"] = report.maxPenetration;
       j["rollbacks"] = sim.totalCollision().rollbacks;
       j["edge_contacts"] = sim.totalCollision().edgeContacts;
-      j["tunnelled"] = contacts->countTunnelled(initial->x, state.x, w, 0.0, t);
+      j["tunnelled"] = report.tunnelled;
     }
     if (rigid) {
       // Bodies, their contacts at the last step, the deepest penetration then (m), the
@@ -418,6 +417,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
                   : 0.0)
           << ", energy " << rigid->energy() << " J\n";
+    }
+    if (sim.contactSolver()) {
+      const weft::ContactReport report = sim.contactReport(&*initial);
+      out << "  obstacles    " << report.contacts << " particles in contact at the end (deepest " << report.maxPenetration
+          << " m), " << sim.totalCollision().rollbacks << " rollbacks, " << sim.totalCollision().edgeContacts
+          << " edge contacts, " << report.tunnelled << " tunnelled\n";
     }
     out << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
         << "  steps        " << done << " of " << steps << " (" << state.time << " s simulated)\n"

@@ -112,6 +112,24 @@ template <class S>
 Simulation<S>::~Simulation() = default;
 
 template <class S>
+ContactReport Simulation<S>::contactReport(const State<S>* start) const {
+  ContactReport report;
+  if (!contacts_) return report;
+  // The contact solver's clock counts from this simulation's initial state.
+  const ScalarArray<S>& w = model_->inverseMass();
+  const double t = state_.time - clockStart_;
+  report.contacts = contacts_->countContacts(state_.x, w, t);
+  report.maxPenetration = contacts_->penetration(state_.x, w, t);
+  if (start) {
+    if (start->x.rows() != state_.x.rows())
+      throw std::invalid_argument("Simulation::contactReport: start has " + std::to_string(start->x.rows()) +
+                                  " positions, the model has " + std::to_string(state_.x.rows()) + " particles");
+    report.tunnelled = contacts_->countTunnelled(start->x, state_.x, w, start->time - clockStart_, t);
+  }
+  return report;
+}
+
+template <class S>
 void Simulation<S>::setState(const State<S>& state) {
   const Index n = model_->particleCount();
   if (state.x.rows() != n || state.v.rows() != n)

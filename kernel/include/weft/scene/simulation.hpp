@@ -76,6 +76,13 @@ struct SceneEffectTimes {
   double rigidBodies = 0;    // the rigid bodies' step (wall time x threads)
 };
 
+/// Simulation::contactReport: contacts with obstacles in a state, and tunnelling over a run.
+struct ContactReport {
+  std::int64_t contacts = 0;   // free particles within thickness + epsilon of an obstacle
+  double maxPenetration = 0;   // m, thickness - distance, the deepest
+  std::int64_t tunnelled = 0;  // free particles that went through an obstacle since the start state given
+};
+
 template <class S>
 class Simulation {
  public:
@@ -113,6 +120,12 @@ class Simulation {
   /// Collision findings of the last step and summed over all steps (zeros without obstacles).
   const CollisionStats& lastCollision() const { return lastCollision_; }
   const CollisionStats& totalCollision() const { return totalCollision_; }
+  /// What the contact pass finds in the current state (serial, for reports; not part of a
+  /// step): free particles in contact and the deepest penetration now, and with `start` (a
+  /// state this simulation passed through, such as the one a run began from) the free
+  /// particles that tunnelled through an obstacle between it and now. Zeros without
+  /// obstacles.
+  ContactReport contactReport(const State<S>* start = nullptr) const;
   /// The contact solver (null without obstacles).
   const ContactSolver<S>* contactSolver() const { return contacts_.get(); }
   /// The rigid bodies, stepped with the particles in the same fixed step (null without
