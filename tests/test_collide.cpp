@@ -60,6 +60,7 @@ TYPED_TEST(Collide, NoObstaclesNoSolverAndTheSameBitsAsBefore) {
   o.threads = 1;
   Simulation<S> plain(freeCloth<S>(8, 1.0), o);
   EXPECT_EQ(plain.contactSolver(), nullptr);
+  EXPECT_EQ(plain.contactReport(&plain.state()).contacts, 0);  // zeros without obstacles
   // A far-away obstacle: a solver exists, nothing touches, the state is the plain one.
   o.collision.obstacles.push_back(Obstacle::plane({0, -100, 0}, {0, 1, 0}));
   Simulation<S> far(freeCloth<S>(8, 1.0), o);
@@ -102,6 +103,13 @@ TYPED_TEST(Collide, ClothSettlesOnAFloorAndASphereWithoutJitterOrCreep) {
     EXPECT_LE(sim.contactSolver()->penetration(sim.state().x, sim.model().inverseMass(), sim.state().time),
               0.5 * o.collision.thickness + 1e-6);
     EXPECT_GT(sim.contactSolver()->countContacts(sim.state().x, sim.model().inverseMass(), sim.state().time), 0);
+    // The simulation's own report says the same (its clock starts at the initial state's 0).
+    const ContactReport report = sim.contactReport();
+    EXPECT_EQ(report.contacts,
+              sim.contactSolver()->countContacts(sim.state().x, sim.model().inverseMass(), sim.state().time));
+    EXPECT_EQ(report.maxPenetration,
+              sim.contactSolver()->penetration(sim.state().x, sim.model().inverseMass(), sim.state().time));
+    EXPECT_EQ(report.tunnelled, 0);
   }
 }
 
@@ -122,7 +130,10 @@ std::int64_t firedThroughWall(bool continuous, int threads, State<S>* end = null
   const State<S> start = sim.state();
   EXPECT_TRUE(sim.run(6).ok());
   if (end) *end = sim.state();
-  return sim.contactSolver()->countTunnelled(start.x, sim.state().x, sim.model().inverseMass(), 0.0, sim.state().time);
+  const std::int64_t tunnelled = sim.contactReport(&start).tunnelled;
+  EXPECT_EQ(tunnelled,
+            sim.contactSolver()->countTunnelled(start.x, sim.state().x, sim.model().inverseMass(), 0.0, sim.state().time));
+  return tunnelled;
 }
 
 TYPED_TEST(Collide, NothingTunnelsThroughAOneTriangleWallAt100MetresPerSecond) {
