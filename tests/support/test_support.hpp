@@ -152,52 +152,9 @@ std::string thrownMessage(const std::function<void()>& f) {
 // Scenes
 // ---------------------------------------------------------------------------------------
 
-/// One damped oscillator on the x axis: particle 0 pinned at the origin, particle 1 of
-/// mass m at (rest + amplitude, 0, 0) at rest, one spring (ks, kd, rest). With gravity 0
-/// the motion stays on the x axis and is the linear ODE m x'' = -ks (x - rest) - kd x'.
-struct Oscillator {
-  double mass = 0.5;                          // kg
-  double omega = 2 * 3.14159265358979323846;  // undamped angular frequency, rad/s
-  double damping = 0.2;                       // kd, N s/m
-  double rest = 0.5;                          // m
-  double amplitude = 0.25;                    // initial displacement, m (< rest: x stays > 0)
-
-  double stiffness() const { return mass * omega * omega; }
-  double zeta() const { return damping / (2 * mass * omega); }
-  double omegaD() const { return omega * std::sqrt(1 - zeta() * zeta()); }
-
-  /// Exact (x, x') at time t (underdamped, released from rest).
-  std::pair<double, double> exact(double t) const {
-    const double sigma = zeta() * omega, wd = omegaD();
-    const double a = amplitude, b = sigma * amplitude / wd;
-    const double e = std::exp(-sigma * t), c = std::cos(wd * t), s = std::sin(wd * t);
-    const double u = e * (a * c + b * s);
-    const double du = e * (-sigma * (a * c + b * s) + (-a * wd * s + b * wd * c));
-    return {rest + u, du};
-  }
-
-  template <class S>
-  ModelAndState<S> build() const {
-    ModelBuilder<S> builder;
-    builder.addParticle({0, 0, 0}, 1.0);
-    builder.addParticle({rest + amplitude, 0, 0}, mass);
-    builder.pin(0);
-    builder.addSpring(0, 1, {stiffness(), damping}, SpringClass::Structural, rest);
-    return builder.build();
-  }
-
-  /// Options for a single-threaded run without gravity and with the stretch check out of
-  /// the way (the oscillator is checked against its exact solution instead).
-  SimulationOptions options(IntegratorKind kind, double dt) const {
-    SimulationOptions o;
-    o.integrator = kind;
-    o.dt = dt;
-    o.threads = 1;
-    o.gravity = {0, 0, 0};
-    o.stability.maxStretch = 1e6;
-    return o;
-  }
-};
+/// The damped oscillator with its exact solution (weft/scene/oscillator.hpp): the same one
+/// the accuracy study runs.
+using Oscillator = DampedOscillator;
 
 /// The flag's grid (weft::flagSpec) built without pins.
 template <class S>

@@ -37,18 +37,8 @@ namespace {
 using weft::Index;
 using weft::IntegratorKind;
 
-// The damped oscillator of the tests: particle 1 (0.5 kg) on a spring to pinned particle
-// 0, omega = 2 pi, damping ratio ~0.03, released 0.25 m from rest length 0.5 m.
-struct Oscillator {
-  double mass = 0.5, omega = 2 * M_PI, damping = 0.2, rest = 0.5, amplitude = 0.25;
-  double stiffness() const { return mass * omega * omega; }
-  std::pair<double, double> exact(double t) const {
-    const double zeta = damping / (2 * mass * omega), sigma = zeta * omega;
-    const double wd = omega * std::sqrt(1 - zeta * zeta), a = amplitude, b = sigma * amplitude / wd;
-    const double e = std::exp(-sigma * t), c = std::cos(wd * t), s = std::sin(wd * t);
-    return {rest + e * (a * c + b * s), e * (-sigma * (a * c + b * s) + (-a * wd * s + b * wd * c))};
-  }
-};
+// The damped oscillator of the tests (weft/scene/oscillator.hpp): exact solution known.
+using Oscillator = weft::DampedOscillator;
 
 struct SceneDef {
   std::string name;
@@ -60,15 +50,7 @@ struct SceneDef {
 
 template <class S>
 weft::ModelAndState<S> build(const SceneDef& scene) {
-  if (scene.analytic) {
-    const Oscillator osc;
-    weft::ModelBuilder<S> b;
-    b.addParticle({0, 0, 0}, 1.0);
-    b.addParticle({osc.rest + osc.amplitude, 0, 0}, osc.mass);
-    b.pin(0);
-    b.addSpring(0, 1, {osc.stiffness(), osc.damping}, weft::SpringClass::Structural, osc.rest);
-    return b.build();
-  }
+  if (scene.analytic) return Oscillator().build<S>();
   return scene.name == "rope" ? weft::makeRope<S>(scene.size) : weft::makeFlag<S>(scene.size);
 }
 

@@ -21,5 +21,6 @@
 #include "weft/rigid/rigid_world.hpp"
 #include "weft/scene/builtin_scenes.hpp"
 #include "weft/scene/fixed_step_clock.hpp"
+#include "weft/scene/oscillator.hpp"
 #include "weft/scene/rigid_scenes.hpp"
 #include "weft/scene/simulation.hpp"
