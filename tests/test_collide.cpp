@@ -1,4 +1,4 @@
-// Collision in the step (issue 5, first part): obstacles as an effect (free when absent),
+// Collision in the step: obstacles as an effect (free when absent),
 // resting contact without jitter or creep on a plane, a sphere and a mesh, no tunnelling
 // through a one-triangle wall at 100 m/s with dt = 1/60 (and discrete detection alone
 // missing it), rollback that restores bit for bit, time of impact to epsilon, and bitwise
@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "support/test_support.hpp"
 #include "weft/collide/obstacles.hpp"
@@ -238,7 +239,9 @@ MeshObstacle blade() {
 /// downwards; the mean height after `seconds`, and the edge contacts.
 template <class S>
 std::pair<double, std::int64_t> clothOverBlade(bool edges, double height, double speed, double dt, double seconds,
-                                               int threads, State<S>* end = nullptr) {
+                                               int threads, State<S>* end = nullptr,
+                                               std::shared_ptr<const CollisionModel> model = nullptr,
+                                               const CollisionModel** used = nullptr) {
   ClothGridSpec spec;
   spec.width = spec.height = 24;
   spec.spacing = 0.03;
@@ -257,7 +260,9 @@ std::pair<double, std::int64_t> clothOverBlade(bool edges, double height, double
   o.threads = threads;
   o.collision.meshes.push_back(blade());
   o.collision.edges = edges;
+  o.collisionModel = std::move(model);
   Simulation<S> sim(std::move(built), o);
+  if (used) *used = sim.contactSolver()->collisionModel().get();
   EXPECT_TRUE(sim.run(static_cast<Index>(std::lround(seconds / dt))).ok()) << sim.status().message();
   if (end) *end = sim.state();
   return {static_cast<double>(sim.state().x.col(1).mean()), sim.totalCollision().edgeContacts};
@@ -291,6 +296,34 @@ TYPED_TEST(Collide, AFastClothEdgeIsCaughtByTheBladeAndTheSameOnTwoThreads) {
   EXPECT_TRUE(bitwiseEqual(one.v, two.v));
   const auto [fell, none] = clothOverBlade<S>(false, 0.3, 20, 1e-3, 0.3, 1);
   EXPECT_LT(fell, -3.0);
+}
+
+TYPED_TEST(Collide, ACollisionModelIsBuiltOnceAndSharedWithTheSameBits) {
+  using S = TypeParam;
+  // The blade prepared once (BVH, feature edges) and given to two Simulations, on 1 and 2
+  // threads: they read that model and step bit for bit like a Simulation that prepared its
+  // own. A model built from other meshes is refused.
+  CollisionOptions blades;
+  blades.meshes.push_back(blade());
+  const auto model = std::make_shared<const CollisionModel>(blades);
+  State<S> own, one, two;
+  const CollisionModel* usedOwn = nullptr;
+  const CollisionModel* usedOne = nullptr;
+  const CollisionModel* usedTwo = nullptr;
+  clothOverBlade<S>(true, 0.3, 20, 1e-3, 0.1, 1, &own, nullptr, &usedOwn);
+  const auto [height, hits] = clothOverBlade<S>(true, 0.3, 20, 1e-3, 0.1, 1, &one, model, &usedOne);
+  clothOverBlade<S>(true, 0.3, 20, 1e-3, 0.1, 2, &two, model, &usedTwo);
+  EXPECT_GT(hits, 0) << "the edge pass ran on the shared model's feature edges";
+  EXPECT_NE(usedOwn, model.get());
+  EXPECT_EQ(usedOne, model.get());
+  EXPECT_EQ(usedTwo, model.get());
+  EXPECT_TRUE(bitwiseEqual(own.x, one.x));
+  EXPECT_TRUE(bitwiseEqual(own.v, one.v));
+  EXPECT_TRUE(bitwiseEqual(one.x, two.x));
+  CollisionOptions walls;
+  walls.meshes.push_back(wall());
+  EXPECT_THROW(clothOverBlade<S>(true, 0.3, 20, 1e-3, 0.01, 1, nullptr, std::make_shared<const CollisionModel>(walls)),
+               std::invalid_argument);
 }
 
 TEST(CollideOptions, BadValuesAreRejectedByName) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "weft/collide/bvh.hpp"
+#include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/collide/shapes.hpp"
 #include "weft/core/kinematic_path.hpp"

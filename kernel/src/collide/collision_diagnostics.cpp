@@ -6,6 +6,7 @@
 
 #include "contact_math.hpp"
 #include "mesh_queries.hpp"
+#include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
 
 namespace weft {
@@ -16,7 +17,7 @@ template <class S>
 std::int64_t ContactSolver<S>::countContacts(const Vec3Array<S>& x, const ScalarArray<S>& w, double t) const {
   std::int64_t count = 0;
   for (Index i = 0; i < static_cast<Index>(x.rows()); ++i)
-    if (w[i] != S(0) && pointPenetration(options_, meshes_, row(x, i), t) > -options_.epsilon) ++count;
+    if (w[i] != S(0) && pointPenetration(options_, model_->meshes(), row(x, i), t) > -options_.epsilon) ++count;
   return count;
 }
 
@@ -24,7 +25,7 @@ template <class S>
 double ContactSolver<S>::penetration(const Vec3Array<S>& x, const ScalarArray<S>& w, double t) const {
   double deepest = 0;
   for (Index i = 0; i < static_cast<Index>(x.rows()); ++i)
-    if (w[i] != S(0)) deepest = std::max(deepest, pointPenetration(options_, meshes_, row(x, i), t));
+    if (w[i] != S(0)) deepest = std::max(deepest, pointPenetration(options_, model_->meshes(), row(x, i), t));
   return deepest;
 }
 
@@ -51,15 +52,15 @@ std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>& start, const V
       if (within && ((ca[axis] < -ex[axis] && cb[axis] > ex[axis]) || (ca[axis] > ex[axis] && cb[axis] < -ex[axis])))
         tunnelled = true;
     }
-    for (size_t m = 0; m < meshes_.size() && !tunnelled; ++m) {
+    for (size_t m = 0; m < model_->meshes().size() && !tunnelled; ++m) {
       const MeshObstacle& mo = options_.meshes[m];
       const V bb = toBody(mo, b, t1);
-      if (meshes_[m].closed)
-        tunnelled = windingNumber(meshes_[m], bb) > 0.5;  // ended inside
+      if (model_->meshes()[m].closed)
+        tunnelled = windingNumber(model_->meshes()[m], bb) > 0.5;  // ended inside
       else                                                // the straight path from start to end goes through the sheet
-        tunnelled = meshImpact(meshes_[m], toBody(mo, a, t0), bb, 0.0, 1e-9 * options_.thickness) < 1 &&
-                    meshDistance(meshes_[m], bb, options_.thickness) > 0.5 * options_.thickness &&
-                    meshDistance(meshes_[m], toBody(mo, a, t0), options_.thickness) > 0.5 * options_.thickness;
+        tunnelled = meshImpact(model_->meshes()[m], toBody(mo, a, t0), bb, 0.0, 1e-9 * options_.thickness) < 1 &&
+                    meshDistance(model_->meshes()[m], bb, options_.thickness) > 0.5 * options_.thickness &&
+                    meshDistance(model_->meshes()[m], toBody(mo, a, t0), options_.thickness) > 0.5 * options_.thickness;
     }
     count += tunnelled ? 1 : 0;
   }

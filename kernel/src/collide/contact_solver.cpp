@@ -4,12 +4,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "contact_math.hpp"
 #include "contact_response.hpp"
 #include "mesh_queries.hpp"
+#include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/collide/shapes.hpp"
 
@@ -18,7 +20,8 @@ namespace weft {
 using namespace detail;
 
 template <class S>
-ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges)
+ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges,
+                                std::shared_ptr<const CollisionModel> model)
     : options_(options) {
   validateCollision(options_);
   for (size_t k = 0; k < edges.size(); ++k)
@@ -26,6 +29,11 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
       if (i < 0 || i >= particleCount)
         throw std::invalid_argument("ContactSolver: edges[" + std::to_string(k) + "] has particle " +
                                     std::to_string(i) + ", not in [0, " + std::to_string(particleCount) + ")");
+  if (model && !model->matches(options_))
+    throw std::invalid_argument(
+        "ContactSolver: the collision model was built from other mesh obstacles (or another featureAngle) than "
+        "these CollisionOptions (" +
+        std::to_string(options_.meshes.size()) + " meshes)");
   if (options_.continuous && options_.edges && !options_.meshes.empty()) {
     edges_ = std::move(edges);
     edgeHits_.resize(edges_.size());
@@ -35,24 +43,15 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
   blockDepth_.assign(static_cast<size_t>(blocks), 0.0);
   blockHits_.assign(static_cast<size_t>(blocks), 0);
   blockCcd_.assign(static_cast<size_t>(blocks), 0);
+  // The mesh obstacles prepared once: given, or built here for this solver alone.
+  model_ = model ? std::move(model) : std::make_shared<const CollisionModel>(options_);
   if (options_.meshes.empty()) return;
   // No clearance known yet: -infinity, so that every particle is tested first.
   clearance_.assign(options_.meshes.size() * static_cast<size_t>(particleCount) * 4,
                     -std::numeric_limits<double>::infinity());
-  const Executor serial(1);
-  meshes_.resize(options_.meshes.size());
-  for (size_t k = 0; k < options_.meshes.size(); ++k) {
-    MeshCollider& c = meshes_[k];
-    c.x = meshPositions<double>(options_.meshes[k].mesh);
-    c.triangles = meshTriangles(options_.meshes[k].mesh);
-    c.bvh.build(c.x, c.triangles, serial);
-    MeshReport report;
-    cleanMesh(options_.meshes[k].mesh, MeshCleanOptions{0}, &report);
-    c.closed = report.boundaryEdges == 0 && report.nonManifoldEdges == 0;
-    if (!edges_.empty()) c.featureEdges = featureEdges(c, options_.featureAngle);
-  }
   // The edge pass needs a mesh with feature edges.
-  if (std::none_of(meshes_.begin(), meshes_.end(), [](const MeshCollider& c) { return !c.featureEdges.empty(); })) {
+  const std::vector<MeshCollider>& meshes = model_->meshes();
+  if (std::none_of(meshes.begin(), meshes.end(), [](const MeshCollider& c) { return !c.featureEdges.empty(); })) {
     edges_.clear();
     edgeHits_.clear();
   }
@@ -85,10 +84,10 @@ double ContactSolver<S>::deepestPenetration(const Vec3Array<S>& x1, const Scalar
         V nn;
         deepest = std::max(deepest, h - distance(o, p, nn));
       }
-      for (size_t m = 0; m < meshes_.size(); ++m) {
+      for (size_t m = 0; m < model_->meshes().size(); ++m) {
         const V bp = toBody(options_.meshes[m], p, t1);
         if (clearanceBound(clearanceOf(clearance_, m, i, n), bp, 0) > h + 2 * eps) continue;  // farther than h
-        deepest = std::max(deepest, h - meshDistance(meshes_[m], bp, h + eps));
+        deepest = std::max(deepest, h - meshDistance(model_->meshes()[m], bp, h + eps));
       }
     }
     blockDepth_[block] = deepest;
@@ -112,7 +111,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       Contact c = detect(options_, p0, p1);
       // Mesh obstacles: the first impact along the segment in each mesh's frame; without
       // continuous detection only when x1 itself is within the thickness.
-      for (size_t m = 0; m < meshes_.size(); ++m) {
+      for (size_t m = 0; m < model_->meshes().size(); ++m) {
         const MeshObstacle& mo = options_.meshes[m];
         const V b0 = toBody(mo, p0, t0), b1 = toBody(mo, p1, t1);
         double* clear = clearanceOf(clearance_, m, i, n);
@@ -123,7 +122,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
         // The distance at b1, looked up a little farther than needed (8 thicknesses) so
         // that it tells the next chunks to skip too.
         const double reach = 9 * h + eps + length;
-        const double d1 = meshDistance(meshes_[m], b1, reach);
+        const double d1 = meshDistance(model_->meshes()[m], b1, reach);
         clear[0] = b1.x;
         clear[1] = b1.y;
         clear[2] = b1.z;
@@ -131,7 +130,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
         const double depth = h - d1;
         if (depth <= 0 && !options_.continuous) continue;
         if (depth <= 0 && d1 - length > h + 2 * eps) continue;  // the segment stays clear
-        const double s = meshImpact(meshes_[m], b0, b1, h, eps);
+        const double s = meshImpact(model_->meshes()[m], b0, b1, h, eps);
         if (s >= 1 && depth <= 0) continue;
         const double at = std::min(s, 1.0);
         if (!c.found || at < c.s || (at == c.s && depth > c.depth)) {
@@ -150,7 +149,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       V vel = row(v1, i);
       const V p = c.obstacle ? respondAnalytic(options_, c, p0, p1, vel)
                              : respondMesh(options_, options_.meshes[static_cast<size_t>(c.mesh)],
-                                           meshes_[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel);
+                                           model_->meshes()[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel);
       setRow(x1, i, p);
       setRow(v1, i, vel);
     }
@@ -183,10 +182,10 @@ std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>
       if (w[i] == S(0) && w[j] == S(0)) continue;
       const V pi0 = row(x0, i), pi1 = row(x1, i), pj0 = row(x0, j), pj1 = row(x1, j);
       double first = 2;
-      for (size_t m = 0; m < meshes_.size(); ++m) {
+      for (size_t m = 0; m < model_->meshes().size(); ++m) {
         const MeshObstacle& mo = options_.meshes[m];
         EdgeProbe probe;
-        const double s = edgeImpact(meshes_[m], toBody(mo, pi0, t0), toBody(mo, pi1, t1), toBody(mo, pj0, t0),
+        const double s = edgeImpact(model_->meshes()[m], toBody(mo, pi0, t0), toBody(mo, pi1, t1), toBody(mo, pj0, t0),
                                     toBody(mo, pj1, t1), h, eps, probe);
         if (!(s < first)) continue;
         first = s;

@@ -90,7 +90,8 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     const CollisionOptions& c = options_.collision;
     std::vector<Edge> edges;
     if (c.continuous && c.edges && !c.meshes.empty()) edges = model_->collisionEdges();  // derived once per Model
-    contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges));
+    contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
+                                                   options_.collisionModel);
   }
   if (!options_.rigid.bodies.empty()) {
     const Vec3d& g = options_.gravity;

@@ -44,6 +44,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -128,7 +129,8 @@ struct CollisionStats {
   CollisionStats& operator+=(const CollisionStats& o);
 };
 
-/// A mesh obstacle as the ContactSolver holds it: a BVH over its vertices at time 0.
+/// A mesh obstacle as the contact pass reads it (CollisionModel): a BVH over its vertices
+/// at time 0.
 struct MeshCollider {
   TriangleBvh<double> bvh;
   Vec3Array<double> x;  // (v x 3) vertices at time 0, m
@@ -146,13 +148,18 @@ struct MeshCollider {
 /// start and end of the chunk: moving mesh obstacles are where their paths put them then.
 // (Edge, a cloth or rope edge given by the particles at its ends: weft/model/topology.hpp.)
 
+class CollisionModel;  // weft/collide/collision_model.hpp
+
 template <class S>
 class ContactSolver {
  public:
   /// `edges` (particle pairs: the cloth's triangle edges, a rope's links) are tested
   /// against the edges of mesh obstacles when CollisionOptions::continuous and ::edges are
   /// on; none: vertices only.
-  ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges = {});
+  /// `model`: the mesh obstacles prepared once (weft/collide/collision_model.hpp), built
+  /// from these options' meshes; none: the solver prepares its own.
+  ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges = {},
+                std::shared_ptr<const CollisionModel> model = nullptr);
 
   /// Deepest penetration (thickness - distance, >= 0) of the candidate positions x1 at
   /// time t1 over free particles (inverse mass w > 0): what rollback compares with
@@ -164,6 +171,8 @@ class ContactSolver {
                          double t1, const Executor& exec);
 
   const CollisionOptions& options() const { return options_; }
+  /// The prepared mesh obstacles this solver reads (shared when it was given one).
+  const std::shared_ptr<const CollisionModel>& collisionModel() const { return model_; }
   /// Free particles in contact (distance < thickness + epsilon) in state x at time t (serial).
   std::int64_t countContacts(const Vec3Array<S>& x, const ScalarArray<S>& w, double t) const;
   /// Deepest penetration (thickness - distance, >= 0) in state x at time t (serial).
@@ -184,7 +193,7 @@ class ContactSolver {
                             double t0, double t1, const Executor& exec);
 
   CollisionOptions options_;
-  std::vector<MeshCollider> meshes_;
+  std::shared_ptr<const CollisionModel> model_;
   std::vector<double> blockDepth_;  // per block of kGrain particles
   std::vector<std::int64_t> blockHits_, blockCcd_;
   /// What the edge pass found for one edge, in the frame of mesh `mesh` (-1: nothing).

@@ -30,6 +30,7 @@
 #include <memory>
 #include <vector>
 
+#include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/core/kinematic_path.hpp"
 #include "weft/integrate/integrator.hpp"
@@ -63,6 +64,10 @@ struct SimulationOptions {
   IntegratorOptions integration;             // tolerances of rk45, CG settings of implicit
   std::vector<KinematicPins> kinematicPins;  // moving pins; none by default, then free
   CollisionOptions collision;                // obstacles; none by default, then free
+  // The mesh obstacles of `collision` prepared once and shared by Simulations (BVHs,
+  // closedness, feature edges: weft/collide/collision_model.hpp); none: built for this
+  // Simulation. Must be built from `collision`'s meshes, or the Simulation refuses it.
+  std::shared_ptr<const CollisionModel> collisionModel;
   RigidOptions rigid;                        // rigid bodies; none by default, then free
   bool profileEffects = false;               // measure the CPU time of each effect (effectTimes())
 };
