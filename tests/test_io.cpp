@@ -274,6 +274,43 @@ TEST(Frames, BadMagicFailsNamingTheFile) {
   EXPECT_NE(message.find("WEFTCASH"), std::string::npos) << message;
 }
 
+// The header of fuzz_frame_cache's seeds with the sizes of a corrupt file: the reader must
+// compare them with the file's length before it allocates or reads anything.
+TEST(Frames, HeaderClaimingHugeSizesFailsWithoutAllocating) {
+  const auto cache = [](const std::string& name, std::uint32_t particles, std::uint64_t frames, std::size_t body) {
+    const std::string path = tempPath(name);
+    std::string bytes("WEFTCACH", 8);
+    const std::uint32_t fields[4] = {1, 8, particles, 0};
+    bytes.append(reinterpret_cast<const char*>(fields), sizeof fields);
+    bytes.append(reinterpret_cast<const char*>(&frames), sizeof frames);
+    bytes.append(body, '\0');
+    std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    return path;
+  };
+  // 2^31 - 1 particles in one frame (48 GiB) claimed by a 40-byte file.
+  std::string path = cache("huge_particles.wcache", 0x7fffffff, 1, 8);
+  std::string message = thrownMessage<std::runtime_error>([&] { FrameCacheReader<double> reader(path); });
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("size mismatch: header says 1 frames of 2147483647 particles"), std::string::npos) << message;
+  EXPECT_NE(message.find("expected 51539607568 bytes, the file has 40 bytes (truncated)"), std::string::npos)
+      << message;
+  // Frame counts whose expected size overflows 64 bits are reported as such, and as
+  // truncated even when frames x frameBytes wraps to less than the file's body (here
+  // 177372539170284151 x 104 = 2^64 + 88 bytes, and the body is 104 bytes).
+  for (const std::uint64_t frames : {~std::uint64_t{0}, std::uint64_t{177372539170284151u}}) {
+    path = cache("huge_frames.wcache", 4, frames, 104);
+    message = thrownMessage<std::runtime_error>([&] { FrameCacheReader<double> reader(path); });
+    EXPECT_NE(message.find("header says " + std::to_string(frames) + " frames of 4 particles"), std::string::npos)
+        << message;
+    EXPECT_NE(message.find("expected more than 2^64 bytes, the file has 136 bytes (truncated)"), std::string::npos)
+        << message;
+  }
+  // More particles than an Index holds.
+  path = cache("too_many_particles.wcache", 0x80000000u, 0, 0);
+  message = thrownMessage<std::runtime_error>([&] { FrameCacheReader<double> reader(path); });
+  EXPECT_NE(message.find("particle count = 2147483648 exceeds 2^31 - 1"), std::string::npos) << message;
+}
+
 TEST(Frames, WritingIntoAMissingDirectoryThrowsNamingThePathAndLeavesNoFile) {
   const std::string dir = ::testing::TempDir() + "weft_io_no_such_directory";
   fs::remove_all(dir);

@@ -1,18 +1,48 @@
 #!/usr/bin/env bash
-# Fuzzes the scene reader for a bounded time: libFuzzer with AddressSanitizer and
-# UndefinedBehaviorSanitizer on tests/fuzz/fuzz_scene.cpp (weft::parseScene on every input;
-# small accepted scenes are also assembled, built into a Simulation and stepped once).
-# Exits non-zero on a finding (a crash, a sanitizer report, an exception the reader should
-# have turned into a SceneError, a timeout), with the input saved in build-fuzz/findings/.
+# Fuzzes weft's file readers for a bounded time: libFuzzer with AddressSanitizer and
+# UndefinedBehaviorSanitizer on three targets, run one after the other, each for SECONDS
+# (so `bash tools/fuzz.sh 60`, as CI runs it, takes three minutes of fuzzing plus the build):
 #
-#   bash tools/fuzz.sh [SECONDS]      default 60
+#   fuzz_scene        tests/fuzz/fuzz_scene.cpp: weft::parseScene on every input; small
+#                     accepted scenes are also assembled, built into a Simulation and stepped once.
+#   fuzz_mesh         tests/fuzz/fuzz_mesh.cpp: the first byte picks the format hint (byte % 4:
+#                     obj, ply, stl, 3ds), the rest goes to weft::loadMeshFromMemory; an accepted
+#                     mesh is cleaned with cleanMesh and, when small, built into a cloth
+#                     (addClothMesh, ModelBuilder::build) in float and in double.
+#   fuzz_frame_cache  tests/fuzz/fuzz_frame_cache.cpp: every input is written to a file and
+#                     opened with FrameCacheReader<float> and <double>; the frames of an accepted
+#                     cache are read back and compared with the input's bytes.
 #
-# Builds weft, weft::io and the fuzzer with clang++-14 (Debian packages clang-14 and
+# Each target exits non-zero on a finding (a crash, a sanitizer report, an exception the code
+# under test should have turned into its documented error — SceneError, or std::runtime_error
+# "mesh file '...'" / "frame cache '...'", or std::invalid_argument from the mesh cleaning and
+# cloth building —, a timeout, an allocation over 2 GB), with the input saved in its findings
+# directory; every target runs even when an earlier one found something, and the script
+# exits 1 if any did.
+#
+#   bash tools/fuzz.sh [SECONDS]      default 60, per target
+#
+# Builds weft, weft::io and the fuzzers with clang++-14 (Debian packages clang-14 and
 # libclang-rt-14-dev, the libFuzzer runtime: tools/setup.sh) in build-fuzz/; the g++ builds
-# are not touched. Seeds: tools/scenes/*.json and tests/fuzz/regressions/ (inputs of past
-# findings, fixed: keep each new one there); dictionary: tests/fuzz/scene.dict; the corpus
-# libFuzzer grows is kept in build-fuzz/corpus/ between runs.
+# are not touched. Per target (the corpus libFuzzer grows is kept between runs):
+#
+#   target            seeds                                          corpus / findings
+#   fuzz_scene        tools/scenes/*.json, tests/fuzz/regressions/*  build-fuzz/corpus/, build-fuzz/findings/
+#                     (dictionary tests/fuzz/scene.dict)
+#   fuzz_mesh         tests/fuzz/seeds/mesh/, tools/scenes/meshes/   build-fuzz/mesh/corpus/, .../findings/
+#                     *.obj (with the obj byte in front),
+#                     tests/fuzz/regressions/mesh/
+#   fuzz_frame_cache  tests/fuzz/seeds/frame_cache/ (written by      build-fuzz/frame_cache/corpus/, .../findings/
+#                     tests/fuzz/make_frame_cache_seeds.cpp),
+#                     tests/fuzz/regressions/frame_cache/
+#
+# tests/fuzz/regressions/ holds the inputs of past findings, fixed: keep each new one there
+# (scene inputs at its top level, the others in the folder named after the target: mesh/,
+# frame_cache/), with a unit test that feeds the same bytes. Leaks inside assimp (not weft's
+# to free) are suppressed by tests/fuzz/lsan.supp. fuzz_mesh is slow (about ten inputs a
+# second: assimp's OBJ reader fills a large buffer per file, costly under ASan).
 # Reproduce a finding: build-fuzz/tests/fuzz/fuzz_scene build-fuzz/findings/crash-...
+# (likewise fuzz_mesh build-fuzz/mesh/findings/..., fuzz_frame_cache build-fuzz/frame_cache/findings/...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
@@ -26,24 +56,56 @@ dir=build-fuzz
 bash tools/setup.sh
 cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_FUZZ=ON \
   -DWEFT_SANITIZE=address,undefined -DWEFT_BUILD_TESTS=OFF -DWEFT_BUILD_BENCH=OFF -DWEFT_BUILD_TOOLS=OFF >/dev/null
-cmake --build "$dir" -j"$jobs" --target fuzz_scene
+cmake --build "$dir" -j"$jobs" --target fuzz_scene fuzz_mesh fuzz_frame_cache
 
-rm -rf "$dir/seeds" "$dir/findings"
-mkdir -p "$dir/seeds" "$dir/findings" "$dir/corpus"
 # Seeds under 64 KB only: libFuzzer sizes its inputs after the largest seed, and the
 # 500 KB pile.json (a thousand bodies of the same few shapes) adds no key the others lack.
+rm -rf "$dir/seeds" "$dir/findings"
+mkdir -p "$dir/seeds" "$dir/findings" "$dir/corpus"
 find tools/scenes -maxdepth 1 -name '*.json' -size -64k -exec cp {} "$dir/seeds/" \;
-cp tests/fuzz/regressions/* "$dir/seeds/"
+find tests/fuzz/regressions -maxdepth 1 -type f -exec cp {} "$dir/seeds/" \;
+
+for target in mesh frame_cache; do
+  rm -rf "$dir/$target/seeds" "$dir/$target/findings"
+  mkdir -p "$dir/$target/seeds" "$dir/$target/findings" "$dir/$target/corpus"
+  cp tests/fuzz/seeds/$target/* "$dir/$target/seeds/"
+  if [ -d tests/fuzz/regressions/$target ]; then
+    find tests/fuzz/regressions/$target -maxdepth 1 -type f -exec cp {} "$dir/$target/seeds/" \;
+  fi
+done
+# fuzz_mesh reads the first byte as the format hint: '0' (48 % 4 = 0) is obj.
+for mesh in tools/scenes/meshes/*.obj; do
+  if [ "$(stat -c %s "$mesh")" -lt 65536 ]; then
+    { printf 0; cat "$mesh"; } >"$dir/mesh/seeds/scenes-$(basename "$mesh")"
+  fi
+done
+
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-echo "fuzz.sh: fuzzing the scene reader for $seconds s"
+# Leaks inside assimp itself (not weft's to free) are suppressed: see tests/fuzz/lsan.supp.
+export LSAN_OPTIONS="suppressions=$PWD/tests/fuzz/lsan.supp:print_suppressions=0"
+failed=0
+
+# fuzz NAME WHAT FINDINGS CORPUS SEEDS [libFuzzer options...]
 # -timeout: one input taking 10 s is a finding (they take milliseconds); -rss_limit_mb: so
 # is one needing 2 GB. New inputs go to the first directory, the corpus.
-if ! "$dir/tests/fuzz/fuzz_scene" "$dir/corpus" "$dir/seeds" -dict=tests/fuzz/scene.dict \
-  -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -artifact_prefix="$dir/findings/" \
-  -print_final_stats=1; then
-  echo "fuzz.sh: the fuzzer found a problem; the input is in $dir/findings/:" >&2
-  ls -l "$dir/findings" >&2
-  exit 1
-fi
-echo "fuzz.sh: no finding in $seconds s"
+fuzz() {
+  local name="$1" what="$2" findings="$3" corpus="$4" seeds="$5"
+  shift 5
+  echo "fuzz.sh: fuzzing $what for $seconds s"
+  if ! "$dir/tests/fuzz/$name" "$corpus" "$seeds" "$@" \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -artifact_prefix="$findings/" \
+    -print_final_stats=1; then
+    echo "fuzz.sh: the fuzzer found a problem; the input is in $findings/:" >&2
+    ls -l "$findings" >&2
+    failed=1
+    return
+  fi
+  echo "fuzz.sh: no finding in $seconds s"
+}
+
+fuzz fuzz_scene "the scene reader" "$dir/findings" "$dir/corpus" "$dir/seeds" -dict=tests/fuzz/scene.dict
+fuzz fuzz_mesh "mesh import" "$dir/mesh/findings" "$dir/mesh/corpus" "$dir/mesh/seeds"
+fuzz fuzz_frame_cache "the frame cache reader" "$dir/frame_cache/findings" "$dir/frame_cache/corpus" \
+  "$dir/frame_cache/seeds"
+exit "$failed"

@@ -305,7 +305,8 @@ FrameCacheReader<S>::FrameCacheReader(std::string path) : path_(std::move(path))
       msg << kCacheHeaderBytes + frames * frameBytes << " bytes";
     else
       msg << "more than 2^64 bytes";
-    msg << ", the file has " << size << " bytes" << (body < frames * frameBytes ? " (truncated)" : "");
+    // frames > body / frameBytes, not body < frames * frameBytes: that product may wrap.
+    msg << ", the file has " << size << " bytes" << (frames > body / frameBytes ? " (truncated)" : "");
     fail(msg.str());
   }
   particleCount_ = static_cast<Index>(particles);

@@ -10,8 +10,10 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <stdexcept>
+#include <string_view>
 
 #include "io_text.hpp"
 
@@ -42,6 +44,67 @@ void checkReadable(const std::string& path) {
   std::fclose(file);
   if (error != 0) fail(path, std::string("cannot read: ") + std::strerror(error));
   if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
+}
+
+/// Whether `line` starts, after spaces and tabs, with the token `token` (followed by the
+/// line's end or white space), as assimp's PLY reader matches header keywords.
+bool startsWithToken(std::string_view line, std::string_view token) {
+  const size_t start = line.find_first_not_of(" \t");
+  if (start == std::string_view::npos || line.compare(start, token.size(), token) != 0) return false;
+  const size_t end = start + token.size();
+  return end == line.size() || line[end] == ' ' || line[end] == '\t';
+}
+
+/// Refuses a PLY file (its first line "ply" or "PLY", which assimp's PLY reader requires)
+/// whose header has no "end_header" line: assimp 5.2's PLY reader never returns on such a
+/// header (an 89-byte file of a header's first six lines ran for as long as it was let;
+/// found by tests/fuzz/fuzz_mesh.cpp).
+/// `nextLine(line)` yields the file's lines, split at '\n', and returns false at the end;
+/// '\r' and NUL also end a line for assimp, so they split a line here too.
+template <class NextLine>
+void checkPlyHeader(const std::string& path, NextLine nextLine) {
+  std::string_view text;
+  bool first = true;
+  while (nextLine(text)) {
+    for (;;) {
+      const size_t end = text.find_first_of(std::string_view("\r\0", 2));
+      const std::string_view line = text.substr(0, end);
+      if (first) {
+        if (!startsWithToken(line, "ply") && !startsWithToken(line, "PLY")) return;  // not PLY: assimp decides
+        first = false;
+      } else if (startsWithToken(line, "end_header")) {
+        return;
+      }
+      if (end == std::string_view::npos) break;
+      text.remove_prefix(end + 1);
+    }
+  }
+  if (!first) fail(path, "PLY header has no end_header line (the file is truncated or not a PLY file)");
+}
+
+void checkPlyHeaderInMemory(const std::string& contents, const std::string& name) {
+  std::string_view rest(contents);
+  bool done = false;
+  checkPlyHeader(name, [&](std::string_view& line) {
+    if (done) return false;
+    const size_t end = rest.find('\n');
+    line = rest.substr(0, end);
+    if (end == std::string_view::npos)
+      done = true;
+    else
+      rest.remove_prefix(end + 1);
+    return true;
+  });
+}
+
+void checkPlyHeaderInFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string buffer;
+  checkPlyHeader(path, [&](std::string_view& line) {
+    if (!std::getline(in, buffer)) return false;
+    line = buffer;
+    return true;
+  });
 }
 
 // No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
@@ -116,6 +179,7 @@ void checkCleanOptions(const MeshCleanOptions& options) {
 
 TriangleMesh loadMesh(const std::string& path) {
   checkReadable(path);
+  checkPlyHeaderInFile(path);
   Assimp::Importer importer;
   configure(importer);
   const aiScene* scene = importer.ReadFile(path, kImportFlags);
@@ -125,6 +189,7 @@ TriangleMesh loadMesh(const std::string& path) {
 
 TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
   if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
+  checkPlyHeaderInMemory(contents, name);
   const std::string extension = std::filesystem::path(name).extension().string();
   const std::string hint = extension.empty() ? std::string() : extension.substr(1);
   Assimp::Importer importer;
