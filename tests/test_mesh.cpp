@@ -676,7 +676,7 @@ TEST(MeshFile, PlyHeaderWithoutEndHeaderIsRefused) {
 
 // Found by fuzz_mesh: a PLY header corrupted by NUL bytes. assimp rejects it (and leaks the
 // mesh it had started, inside assimp: assimp/assimp#5717, suppressed in
-// tests/fuzz/lsan.supp); weft reports that as the import's documented error.
+// tests/lsan.supp); weft reports that as the import's documented error.
 TEST(MeshFile, FuzzedCorruptPlyIsReportedWithItsName) {
   const std::string contents = fuzzRegression("ply-corrupt-header-assimp-leak.ply");
   EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory(contents, "fuzzed.ply"); }),

@@ -39,7 +39,7 @@
 # tests/fuzz/regressions/ holds the inputs of past findings, fixed: keep each new one there
 # (scene inputs at its top level, the others in the folder named after the target: mesh/,
 # frame_cache/), with a unit test that feeds the same bytes. Leaks inside assimp (not weft's
-# to free) are suppressed by tests/fuzz/lsan.supp. fuzz_mesh is slow (about ten inputs a
+# to free) are suppressed by tests/lsan.supp. fuzz_mesh is slow (about ten inputs a
 # second: assimp's OBJ reader fills a large buffer per file, costly under ASan).
 # Reproduce a finding: build-fuzz/tests/fuzz/fuzz_scene build-fuzz/findings/crash-...
 # (likewise fuzz_mesh build-fuzz/mesh/findings/..., fuzz_frame_cache build-fuzz/frame_cache/findings/...).
@@ -82,8 +82,8 @@ done
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-# Leaks inside assimp itself (not weft's to free) are suppressed: see tests/fuzz/lsan.supp.
-export LSAN_OPTIONS="suppressions=$PWD/tests/fuzz/lsan.supp:print_suppressions=0"
+# Leaks inside assimp itself (not weft's to free) are suppressed: see tests/lsan.supp.
+export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
 failed=0
 
 # fuzz NAME WHAT FINDINGS CORPUS SEEDS [libFuzzer options...]
