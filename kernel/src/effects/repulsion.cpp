@@ -98,7 +98,9 @@ void Repulsion<S>::add(Index begin, Index count, const Vec3Array<S>& x, S* ax, S
             const Index j = sorted_[q];
             const S ex = xi - X[j], ey = yi - Y[j], ez = zi - Z[j];
             const S d2 = ex * ex + ey * ey + ez * ez;
-            const bool near = (cellX_[j] == cx) & (cellY_[j] == cy) & (cellZ_[j] == cz) & (d2 < r2) & (d2 > S(0));
+            // Bitwise & on purpose (no branch per test); as ints, which clang does not warn about.
+            const bool near = (int(cellX_[j] == cx) & int(cellY_[j] == cy) & int(cellZ_[j] == cz) & int(d2 < r2) &
+                               int(d2 > S(0))) != 0;
             const S d = std::sqrt(d2);
             const S s = near ? k * (r - d) / d : S(0);
             fx += s * ex;
