@@ -132,8 +132,8 @@ std::int64_t firedThroughWall(bool continuous, int threads, State<S>* end = null
   EXPECT_TRUE(sim.run(6).ok());
   if (end) *end = sim.state();
   const std::int64_t tunnelled = sim.contactReport(&start).tunnelled;
-  EXPECT_EQ(tunnelled,
-            sim.contactSolver()->countTunnelled(start.x, sim.state().x, sim.model().inverseMass(), 0.0, sim.state().time));
+  EXPECT_EQ(tunnelled, sim.contactSolver()->countTunnelled(start.x, sim.state().x, sim.model().inverseMass(), 0.0,
+                                                           sim.state().time));
   return tunnelled;
 }
 

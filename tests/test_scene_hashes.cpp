@@ -194,8 +194,8 @@ TEST_P(StateHash, IsTheRecordedOneOnOneAndTwoThreadsInFloatAndDouble) {
       if (e.scene == scene && e.precision == precision) recorded = &e;
     ASSERT_NE(recorded, nullptr) << "no line for it in state_hashes.txt";
     EXPECT_EQ(recorded->steps, steps) << "the table was recorded with another step count";
-    EXPECT_EQ(one.hash, recorded->hash) << "the scene's result changed (status " << one.status << " after "
-                                        << one.steps << " steps; recorded " << recorded->status << ")";
+    EXPECT_EQ(one.hash, recorded->hash) << "the scene's result changed (status " << one.status << " after " << one.steps
+                                        << " steps; recorded " << recorded->status << ")";
     EXPECT_EQ(one.status, recorded->status);
   }
 }

@@ -33,8 +33,8 @@ constexpr weft::Index kMaxParticles = 100000;
 const std::string& tempPath() {
   static const std::string path = [] {
     const char* dir = std::getenv("TMPDIR");
-    std::string p = std::string(dir && *dir ? dir : "/tmp") + "/weft-fuzz-frame-cache-" + std::to_string(getpid()) +
-                    ".wcache";
+    std::string p =
+        std::string(dir && *dir ? dir : "/tmp") + "/weft-fuzz-frame-cache-" + std::to_string(getpid()) + ".wcache";
     std::atexit([] { std::remove(tempPath().c_str()); });
     return p;
   }();

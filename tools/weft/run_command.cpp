@@ -420,9 +420,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     }
     if (sim.contactSolver()) {
       const weft::ContactReport report = sim.contactReport(&*initial);
-      out << "  obstacles    " << report.contacts << " particles in contact at the end (deepest " << report.maxPenetration
-          << " m), " << sim.totalCollision().rollbacks << " rollbacks, " << sim.totalCollision().edgeContacts
-          << " edge contacts, " << report.tunnelled << " tunnelled\n";
+      out << "  obstacles    " << report.contacts << " particles in contact at the end (deepest "
+          << report.maxPenetration << " m), " << sim.totalCollision().rollbacks << " rollbacks, "
+          << sim.totalCollision().edgeContacts << " edge contacts, " << report.tunnelled << " tunnelled\n";
     }
     out << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
         << "  steps        " << done << " of " << steps << " (" << state.time << " s simulated)\n"

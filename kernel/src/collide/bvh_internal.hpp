@@ -128,8 +128,8 @@ inline bool overlap(const Aabb<double>& a, const Aabb<double>& b) {
 
 /// Sorts pairs by (first, second): an LSD radix sort on the significant bits of the two
 /// indices, 11 bits per pass (comparison sorts mispredict a branch per comparison).
-inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& swap,
-               std::vector<Index>& histogram) {
+inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_t>& keys,
+                      std::vector<std::uint64_t>& swap, std::vector<Index>& histogram) {
   const size_t n = pairs.size();
   if (n < 256) {
     std::sort(pairs.begin(), pairs.end());
@@ -174,6 +174,5 @@ inline std::string text(double value) {
   out << value;
   return out.str();
 }
-
 
 }  // namespace weft::bvh_detail

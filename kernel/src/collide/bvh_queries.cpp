@@ -317,12 +317,12 @@ void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>& x, std::vector<Tr
   pairQuery<true, true>(*this, &x, &x, out, scratch, exec);
 }
 
-#define WEFT_INSTANTIATE_QUERIES(S)                                                                              \
+#define WEFT_INSTANTIATE_QUERIES(S)                                                                                    \
   template std::optional<ClosestTriangle<S>> TriangleBvh<S>::closestTriangle(const Vec3Array<S>&, const Vec3<S>&, S)   \
       const;                                                                                                           \
-  template void TriangleBvh<S>::overlappingPairs(const TriangleBvh&, std::vector<TrianglePair>&, BvhPairScratch&,     \
+  template void TriangleBvh<S>::overlappingPairs(const TriangleBvh&, std::vector<TrianglePair>&, BvhPairScratch&,      \
                                                  const Executor&) const;                                               \
-  template void TriangleBvh<S>::intersectingPairs(const TriangleBvh&, const Vec3Array<S>&, const Vec3Array<S>&,       \
+  template void TriangleBvh<S>::intersectingPairs(const TriangleBvh&, const Vec3Array<S>&, const Vec3Array<S>&,        \
                                                   std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const; \
   template void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const;         \
   template void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>&, std::vector<TrianglePair>&,                 \

@@ -57,7 +57,7 @@ std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>& start, const V
       const V bb = toBody(mo, b, t1);
       if (model_->meshes()[m].closed)
         tunnelled = windingNumber(model_->meshes()[m], bb) > 0.5;  // ended inside
-      else                                                // the straight path from start to end goes through the sheet
+      else  // the straight path from start to end goes through the sheet
         tunnelled = meshImpact(model_->meshes()[m], toBody(mo, a, t0), bb, 0.0, 1e-9 * options_.thickness) < 1 &&
                     meshDistance(model_->meshes()[m], bb, options_.thickness) > 0.5 * options_.thickness &&
                     meshDistance(model_->meshes()[m], toBody(mo, a, t0), options_.thickness) > 0.5 * options_.thickness;
@@ -67,10 +67,10 @@ std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>& start, const V
   return count;
 }
 
-#define WEFT_INSTANTIATE(S)                                                                                   \
+#define WEFT_INSTANTIATE(S)                                                                                        \
   template std::int64_t ContactSolver<S>::countContacts(const Vec3Array<S>&, const ScalarArray<S>&, double) const; \
-  template double ContactSolver<S>::penetration(const Vec3Array<S>&, const ScalarArray<S>&, double) const;        \
-  template std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>&, const Vec3Array<S>&,                \
+  template double ContactSolver<S>::penetration(const Vec3Array<S>&, const ScalarArray<S>&, double) const;         \
+  template std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>&, const Vec3Array<S>&,                 \
                                                          const ScalarArray<S>&, double, double) const;
 WEFT_INSTANTIATE(float)
 WEFT_INSTANTIATE(double)

@@ -19,7 +19,6 @@ struct Contact {
   Index mesh = -1;  // or the mesh obstacle hit
 };
 
-
 // Discrete contacts of x1, and with `continuous` the first time of impact along x0 -> x1.
 Contact detect(const CollisionOptions& opt, V p0, V p1);
 

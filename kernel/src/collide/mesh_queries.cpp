@@ -1,12 +1,12 @@
 // Queries against mesh obstacles (see mesh_queries.hpp).
 #include "mesh_queries.hpp"
 
-#include "closest_point.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <tuple>
+
+#include "closest_point.hpp"
 
 namespace weft::detail {
 
@@ -66,7 +66,6 @@ double windingNumber(const MeshCollider& c, V p) {
   }
   return total / (4 * 3.14159265358979323846);
 }
-
 
 EdgeProbe closestMeshEdge(const MeshCollider& c, V a, V b, const Aabb<double>& box) {
   EdgeProbe best;

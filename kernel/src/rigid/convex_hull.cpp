@@ -69,7 +69,6 @@ void rigid_detail::finishHull(ConvexHull& hull) {
     hull.boundingRadius = std::max(hull.boundingRadius, (v - hull.centroid).norm());
 }
 
-
 int ConvexHull::support(const Vector3d& direction) const {
   int best = 0;
   double bestDot = -std::numeric_limits<double>::infinity();
@@ -256,6 +255,5 @@ std::string checkConvexHull(const ConvexHull& hull, double tolerance) {
   }
   return "";
 }
-
 
 }  // namespace weft

@@ -181,7 +181,6 @@ struct SatResult {
 
 enum class Reference { None, FaceA, FaceB, Edge };
 
-
 void clearManifold(ContactManifold& out) { out.pointCount = 0; }
 
 }  // namespace

@@ -11,7 +11,6 @@
 namespace weft {
 namespace {
 
-
 /// The exact SAT. Stops as soon as an axis separates by more than stopAbove (after the
 /// face queries of A, those of B, or at that edge pair).
 SatResult satQuery(const ConvexHull& a, const ConvexHull& b, const Relative& rel, double stopAbove) {

@@ -159,7 +159,7 @@ class ForceField {
 
   // Gather: per-spring forces and the CSR incidence (entry = 2 * spring + side, side 1
   // meaning the particle is endpoint b and takes -f).
-  Vec3Array<S> springForce_;     // (m x 3) force on endpoint a, N
+  Vec3Array<S> springForce_;              // (m x 3) force on endpoint a, N
   const Incidence* incidence_ = nullptr;  // the Model's particle -> spring lists
 
   // Coloured: the Model's springs in colour order.

@@ -63,13 +63,13 @@ class SpringJacobian {
 
   const Model<S>* model_;
   const Incidence* incidence_ = nullptr;  // the Model's particle -> spring lists (entry 2 s + side)
-  Vec3Array<S> direction_;       // (m x 3) unit direction d of each spring (0 if length 0)
-  ScalarArray<S> alpha_;         // (m) h^2 ks c, kg
-  ScalarArray<S> beta_;          // (m) h^2 ks (1 - c), kg
-  ScalarArray<S> gamma_;         // (m) h kd, kg
-  Vec3Array<S> g_;               // (m x 3) per-spring product, on endpoint a
-  Vec3Array<S> diagonal_;        // (n x 3) diag(A)
-  S dragTerm_ = 0;               // h c, kg (the drag's share of A's diagonal)
+  Vec3Array<S> direction_;                // (m x 3) unit direction d of each spring (0 if length 0)
+  ScalarArray<S> alpha_;                  // (m) h^2 ks c, kg
+  ScalarArray<S> beta_;                   // (m) h^2 ks (1 - c), kg
+  ScalarArray<S> gamma_;                  // (m) h kd, kg
+  Vec3Array<S> g_;                        // (m x 3) per-spring product, on endpoint a
+  Vec3Array<S> diagonal_;                 // (n x 3) diag(A)
+  S dragTerm_ = 0;                        // h c, kg (the drag's share of A's diagonal)
 };
 
 extern template class SpringJacobian<float>;

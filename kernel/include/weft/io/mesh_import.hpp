@@ -21,10 +21,10 @@
 // file is missing or cannot be opened (with strerror), is a directory, is empty, assimp
 // cannot read it (with assimp's error string; a PLY file whose header has no end_header
 // line is refused before assimp sees it, since assimp 5.2 would never return on it), or it
-// has no triangles (with the numbers of points and lines it has instead). loadCleanMesh reports what cleanMesh finds wrong
-// with the file's contents (a coordinate that is not finite, no triangle left) the same
-// way: std::runtime_error, the file name in front of cleanMesh's message. A bad
-// MeshCleanOptions is the caller's error: std::invalid_argument, before the file is read.
+// has no triangles (with the numbers of points and lines it has instead). loadCleanMesh reports what cleanMesh finds
+// wrong with the file's contents (a coordinate that is not finite, no triangle left) the same way: std::runtime_error,
+// the file name in front of cleanMesh's message. A bad MeshCleanOptions is the caller's error: std::invalid_argument,
+// before the file is read.
 //
 // weft::io is a separate library so that the kernel needs only Eigen and TBB.
 #pragma once

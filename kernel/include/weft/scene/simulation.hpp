@@ -68,8 +68,8 @@ struct SimulationOptions {
   // closedness, feature edges: weft/collide/collision_model.hpp); none: built for this
   // Simulation. Must be built from `collision`'s meshes, or the Simulation refuses it.
   std::shared_ptr<const CollisionModel> collisionModel;
-  RigidOptions rigid;                        // rigid bodies; none by default, then free
-  bool profileEffects = false;               // measure the CPU time of each effect (effectTimes())
+  RigidOptions rigid;           // rigid bodies; none by default, then free
+  bool profileEffects = false;  // measure the CPU time of each effect (effectTimes())
 };
 
 /// CPU time of each effect (s, summed over threads) since construction, measured while
