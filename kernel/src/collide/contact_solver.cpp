@@ -13,7 +13,6 @@
 #include "mesh_queries.hpp"
 #include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
-#include "weft/collide/shapes.hpp"
 
 namespace weft {
 
