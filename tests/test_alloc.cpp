@@ -251,6 +251,33 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
     }
 }
 
+TEST(SelfCollisionAllocation, StepsWithClothOnClothDoNotAllocate) {
+  // A small cloth dropped onto a larger one on a floor, self-collision on (contacts every
+  // step once they touch), 1 and 2 threads; counted after 0.3 s, when they rest.
+  ModelBuilder<double> b;
+  ClothGridSpec spec = flagSpec(12);
+  spec.origin = {0, 0.01, 0};
+  addClothGrid(b, spec);
+  spec.width = spec.height = 8;
+  spec.origin = {2.5 * spec.spacing, 0.02, 1.5 * spec.spacing};
+  addClothGrid(b, spec);
+  const ModelAndState<double> cloths = b.build();
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
+    SimulationOptions options;
+    options.dt = defaultTimeStep(BuiltinScene::Flag, 12);
+    options.threads = threads;
+    options.profileEffects = true;
+    options.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+    options.selfCollision.enabled = true;
+    Simulation<double> sim(ModelAndState<double>{cloths.model, cloths.state}, options);
+    ASSERT_TRUE(sim.run(static_cast<Index>(0.3 / options.dt)).ok());
+    expectTwentyStepsDoNotAllocate(sim);
+    EXPECT_GT(sim.lastSelfCollision().contacts, 0);
+    EXPECT_GT(sim.effectTimes().selfCollision, 0);
+  }
+}
+
 TEST(RigidAllocation, StepsWithRigidBodiesDoNotAllocate) {
   // A pile of 120 convex bodies landing in a bin beside a hanging flag, each narrow phase,
   // 1 and 2 threads; counted once the bodies touch (pairs, manifolds, warm starting busy).

@@ -223,6 +223,7 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
   if (o.effects.repulsion.enabled()) names.emplace_back("repulsion");
   if (!o.kinematicPins.empty()) names.emplace_back("kinematic_pins");
   if (o.collision.any()) names.emplace_back("collision");
+  if (o.selfCollision.enabled) names.emplace_back("self_collision");
   if (!o.rigid.bodies.empty()) names.emplace_back("rigid_bodies");
   return names;
 }
@@ -286,6 +287,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const weft::Model<S>& model = sim.model();
   const weft::State<S>& state = sim.state();
   const std::int64_t done = sim.stepCount();
+  // The run's peak, before the reports below (the exact intersection check builds a BVH of
+  // its own): what the memory estimate is for.
+  const double peakMb = peakResidentMegabytes();
   const double stepsPerSecond = wall > 0 ? static_cast<double>(done) / wall : 0;
   const double springEvals = static_cast<double>(sim.forceEvaluations()) * model.springCount();
   const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
@@ -303,6 +307,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (name == "wind") return times.forces.wind;
     if (name == "repulsion") return times.forces.repulsion;
     if (name == "collision") return times.collision;
+    if (name == "self_collision") return times.selfCollision;
     if (name == "rigid_bodies") return times.rigidBodies;
     return times.kinematicPins;
   };
@@ -353,6 +358,24 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["edge_contacts"] = sim.totalCollision().edgeContacts;
       j["tunnelled"] = report.tunnelled;
     }
+    // Cloth against cloth: pairs of triangles (sharing no particle) that intersect at the end
+    // (the exact check, in every scene), and with self-collision what its pass did over the run.
+    j["intersecting_pairs"] = sim.selfIntersections();
+    if (const weft::SelfCollider<S>* self = sim.selfCollider()) {
+      const weft::SelfCollisionStats& t = sim.totalSelfCollision();
+      j["self_contacts"] = t.contacts;
+      j["self_collision"] = {{"thickness", self->options().thickness},
+                             {"passes", t.passes},
+                             {"candidates", t.candidates},
+                             {"tests", t.tests},
+                             {"vertex_triangle_contacts", t.vertexTriangle},
+                             {"edge_edge_contacts", t.contacts - t.vertexTriangle},
+                             {"failsafe_chunks", t.failsafeChunks},
+                             {"frozen", t.frozen},
+                             {"unresolved", t.unresolved}};
+    } else {
+      j["self_contacts"] = 0;
+    }
     if (rigid) {
       // Bodies, their contacts at the last step, the deepest penetration then (m), the
       // narrow phase and how often its witness cache answered alone over the run.
@@ -380,7 +403,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["frames_written"] = frames->written();
       j["output"] = output.directory;
     }
-    j["peak_rss_mb"] = peakResidentMegabytes();
+    j["peak_rss_mb"] = peakMb;
     j["memory_estimate_mb"] = estimate / (1024.0 * 1024.0);  // asked before assembling (cloth meshes not counted)
     std::cout << j.dump() << std::endl;
   } else {
@@ -424,6 +447,16 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           << report.maxPenetration << " m), " << sim.totalCollision().rollbacks << " rollbacks, "
           << sim.totalCollision().edgeContacts << " edge contacts, " << report.tunnelled << " tunnelled\n";
     }
+    if (model.triangleCount() > 1) {
+      out << "  cloth        " << sim.selfIntersections() << " pairs of triangles intersecting at the end";
+      if (sim.selfCollider()) {
+        const weft::SelfCollisionStats& t = sim.totalSelfCollision();
+        out << "; self-collision: " << t.contacts << " contacts (" << t.vertexTriangle << " vertex-triangle), "
+            << t.failsafeChunks << " chunks needed the failsafe (" << t.frozen << " vertices stopped, " << t.unresolved
+            << " unresolved)";
+      }
+      out << "\n";
+    }
     out << "  work/step    " << workLine(sim.totalWork(), done) << "\n"
         << "  steps        " << done << " of " << steps << " (" << state.time << " s simulated)\n"
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
@@ -432,7 +465,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << " J; lowest point y = " << lowest << " m\n"
         << "  status       " << (status.ok() ? std::string("ok") : status.message()) << "\n"
         << "  state hash   " << hash << "\n"
-        << "  peak memory  " << peakResidentMegabytes() << " MB resident (" << estimate / (1024.0 * 1024.0)
+        << "  peak memory  " << peakMb << " MB resident (" << estimate / (1024.0 * 1024.0)
         << " MB estimated before assembling)\n";
     if (frames)
       out << "  frames       " << frames->written() << " (" << output.format << ", every " << output.every

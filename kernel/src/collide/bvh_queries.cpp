@@ -109,7 +109,7 @@ std::optional<ClosestTriangle<S>> TriangleBvh<S>::closestTriangle(const Vec3Arra
 }
 
 template <class S>
-template <bool kSelf, bool kExact>
+template <bool kSelf, bool kExact, bool kSkipShared>
 void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
                                std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const {
   using Task = std::array<Index, 2>;  // node references; in self queries {a, a} means "all pairs within a"
@@ -159,7 +159,7 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
   const auto keep = [&](Index sa, Index sb) {
     const std::array<Index, 3>& ca = A.corners_[static_cast<size_t>(sa)];
     const std::array<Index, 3>& cb = B.corners_[static_cast<size_t>(sb)];
-    if constexpr (kSelf) {
+    if constexpr (kSelf && kSkipShared) {
       if ((ca[0] == cb[0]) | (ca[0] == cb[1]) | (ca[0] == cb[2]) | (ca[1] == cb[0]) | (ca[1] == cb[1]) |
           (ca[1] == cb[2]) | (ca[2] == cb[0]) | (ca[2] == cb[1]) | (ca[2] == cb[2]))
         return false;
@@ -311,6 +311,12 @@ void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>& out, BvhPairScratch& s
 }
 
 template <class S>
+void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch,
+                                          const Executor& exec) const {
+  pairQuery<true, false, false>(*this, nullptr, nullptr, out, scratch, exec);
+}
+
+template <class S>
 void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>& x, std::vector<TrianglePair>& out,
                                            BvhPairScratch& scratch, const Executor& exec) const {
   checkPositions("selfIntersectingPairs", x);
@@ -325,6 +331,8 @@ void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>& x, std::vector<Tr
   template void TriangleBvh<S>::intersectingPairs(const TriangleBvh&, const Vec3Array<S>&, const Vec3Array<S>&,        \
                                                   std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const; \
   template void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const;         \
+  template void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&)     \
+      const;                                                                                                           \
   template void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>&, std::vector<TrianglePair>&,                 \
                                                       BvhPairScratch&, const Executor&) const;
 WEFT_INSTANTIATE_QUERIES(float)

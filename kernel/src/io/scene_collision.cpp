@@ -1,4 +1,4 @@
-// The `collision` section of a scene file (docs/scenes.md): the contact options and the
+// The `collision` and `self_collision` sections of a scene file (docs/scenes.md): the contact options and the
 // obstacles, analytic (plane, sphere, capsule, box) into CollisionOptions, mesh obstacles
 // into MeshObstacleSpecs whose files are read when the scene is assembled. Ranges of the
 // options and shapes are the kernel's (validateCollision), reported with the file and the
@@ -14,6 +14,15 @@
 #include "scene_internal.hpp"
 
 namespace weft::io_detail {
+
+void readSelfCollision(const Reader& r, const Json& j, const std::string& f, SelfCollisionOptions& o) {
+  r.object(j, f, {"thickness", "friction", "iterations"});
+  o.enabled = true;
+  o.thickness = r.anyNumber(j, f, "thickness", o.thickness);
+  o.friction = r.anyNumber(j, f, "friction", o.friction);
+  o.iterations = r.anyInt(j, f, "iterations", o.iterations);
+  r.kernelRules(j, f, f + ".", [&] { validateSelfCollision(o, f.c_str()); });
+}
 
 void readCollision(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory,
                    CollisionOptions& c, std::vector<MeshObstacleSpec>& meshes) {

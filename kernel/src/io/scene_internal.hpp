@@ -36,6 +36,8 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& field, cons
 
 /// The `collision` section (scene_collision.cpp): options, analytic obstacles into `c`,
 /// mesh obstacles (read at assembly) into `meshes`.
+/// The `self_collision` section: its presence turns self-collision on.
+void readSelfCollision(const Reader& r, const Json& j, const std::string& field, SelfCollisionOptions& o);
 void readCollision(const Reader& r, const Json& j, const std::string& field, const std::string& baseDirectory,
                    CollisionOptions& c, std::vector<MeshObstacleSpec>& meshes);
 

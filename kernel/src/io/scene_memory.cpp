@@ -37,6 +37,10 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
   return {506, 142};  // the largest
 }
 constexpr double kBytesPerTriangle = 12;
+// With self-collision: the triangles' BVH, the pair-query buffers and the candidate lists,
+// measured on `fold` at 32² after its first step (1.9 MB for 1922 triangles, rounded up).
+// A folded cloth lists more candidates than a flat one, so this is the floor of a run.
+constexpr double kBytesPerSelfCollisionTriangle = 1000;
 // Resident memory a rigid body's share of the world takes while a pile of them collides
 // (pairs, caches, manifolds, constraints), measured on the `pile` (1005 bodies: 6.5 MB).
 constexpr double kBytesPerRigidBody = 6500;
@@ -71,6 +75,8 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
   const Rates r = memoryRates(scene.simulation.integrator, scene.precision == Precision::Float);
   e.bytes = r.particle * static_cast<double>(e.particles) + r.spring * static_cast<double>(e.springs) +
             kBytesPerTriangle * static_cast<double>(e.triangles) +
+            (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * static_cast<double>(e.triangles)
+                                                    : 0.0) +
             kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
   return e;
 }

@@ -141,7 +141,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   const Reader r(source);
   r.object(root, "",
            {"name", "bodies", "integrator", "dt", "steps", "duration", "precision", "threads", "force_strategy",
-            "gravity", "effects", "collision", "rigid_bodies", "integration", "stability", "output"});
+            "gravity", "effects", "collision", "self_collision", "rigid_bodies", "integration", "stability", "output"});
   SceneSpec scene;
   scene.name = r.string(root, "", "name", "scene");
   // Cloth and ropes (`bodies`), rigid bodies (`rigid_bodies`), or both.
@@ -194,6 +194,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   if (root.contains("effects")) o.effects = readEffects(r, root["effects"], "effects");
   if (root.contains("collision"))
     readCollision(r, root["collision"], "collision", baseDirectory, o.collision, scene.meshObstacles);
+  if (root.contains("self_collision")) readSelfCollision(r, root["self_collision"], "self_collision", o.selfCollision);
   if (root.contains("rigid_bodies")) o.rigid = readRigidBodies(r, root["rigid_bodies"], "rigid_bodies");
   if (root.contains("integration")) {
     const Json& j = root["integration"];

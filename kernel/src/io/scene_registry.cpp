@@ -15,9 +15,10 @@
 namespace weft {
 
 std::vector<std::string> builtinSceneNames() {
-  return {"flag",         "rope",      "flag-wind",        "hanging-cloth",  "drape", "drape-mesh",
-          "rope-on-pegs", "fast-ball", "ball-on-brick",    "stack",          "pile",  "bullet",
-          "slope",        "hammock",   "tablecloth-trick", "tablecloth-slow"};
+  return {"flag",         "rope",      "flag-wind",        "hanging-cloth",   "drape", "drape-mesh",
+          "rope-on-pegs", "fast-ball", "ball-on-brick",    "stack",           "pile",  "bullet",
+          "slope",        "hammock",   "tablecloth-trick", "tablecloth-slow", "fold",  "two-cloths",
+          "twist",        "flag-pole"};
 }
 
 SceneSpec builtinSceneSpec(const std::string& name, Index size) {
@@ -143,6 +144,90 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
       torus.meshContents = std::string(builtinTorusObj());
       torus.scale = 0.01;
       scene.meshObstacles.push_back(std::move(torus));
+    }
+  } else if (name == "fold" || name == "two-cloths" || name == "twist" || name == "flag-pole") {
+    // Cloth against itself (self-collision on, weft/collide/self_collision.hpp).
+    scene.simulation.selfCollision.enabled = true;
+    scene.simulation.effects.drag = 1e-3;
+    if (name == "fold") {
+      // A free 1 m cloth (size x size, default 32) held upright and leaning (its lower edge
+      // 0.2 m above the floor at y = 0), let go: it lands in folds on itself; 2.5 s.
+      const Index n = side(32);
+      cloth("cloth", flagSpec(n), n);
+      body.grid.origin = {-0.5, 1.2, -0.2};
+      body.grid.rowAxis = {1, 0, 0};
+      body.grid.columnAxis = {0, -0.96, 0.28};
+      scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+      scene.steps = static_cast<std::int64_t>(std::ceil(2.5 / scene.simulation.dt));
+    } else if (name == "two-cloths") {
+      // Two free 1 m cloths (size x size each, default 24) dropped onto a sphere (radius
+      // 0.3 m at the origin; a floor at y = -0.4): one at 0.5 m, the other 0.15 m above it
+      // and turned 45 degrees about the vertical; 2.5 s.
+      const Index n = side(24);
+      cloth("lower", flagSpec(n), n);
+      body.grid.origin = {-0.5, 0.5, -0.5};
+      BodySpec upper = body;
+      upper.name = "upper";
+      const double c = std::sqrt(0.5);
+      upper.grid.rowAxis = {c, 0, c};
+      upper.grid.columnAxis = {-c, 0, c};
+      upper.grid.origin = {0, 0.65, -c};  // centred above the sphere: origin + (row + column) / 2 = (0, 0.65, 0)
+      scene.bodies.push_back(upper);
+      scene.simulation.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.3));
+      scene.simulation.collision.obstacles.push_back(Obstacle::plane({0, -0.4, 0}, {0, 1, 0}));
+      scene.steps = static_cast<std::int64_t>(std::ceil(2.5 / scene.simulation.dt));
+    } else if (name == "twist") {
+      // A 1 m square cloth (size x size, default 32), horizontal at y = 0.5, held along its
+      // two edges x = 0 and x = 1 by bars that turn about the x axis in opposite directions
+      // at half a turn per second while closing in at 0.1 m/s each, for 3 s (three turns
+      // of one bar against the other), then hold: the classic wringing test; 4 s.
+      const Index n = side(32);
+      cloth("cloth", flagSpec(n), n);
+      body.grid.origin = {0, 0.5, 0};
+      body.grid.rowAxis = {1, 0, 0};
+      body.grid.columnAxis = {0, 0, 1};
+      for (const int end : {0, 1}) {
+        PinSpec bar;
+        for (Index r = 0; r < n; ++r) bar.particles.push_back(r * n + (end == 0 ? 0 : n - 1));
+        KinematicPath path;
+        path.center = {static_cast<double>(end), 0.5, 0.5};
+        path.axis = {1, 0, 0};
+        path.angularVelocity = (end == 0 ? 1 : -1) * 3.14159265358979323846;
+        path.velocity = {end == 0 ? 0.1 : -0.1, 0, 0};
+        path.startTime = 0;
+        path.endTime = 3;
+        bar.path = path;
+        body.pins.push_back(bar);
+      }
+      scene.steps = static_cast<std::int64_t>(std::ceil(4.0 / scene.simulation.dt));
+    } else {
+      // flag-pole: the flag of flag-wind (size x size, default 32) on a pole (a capsule of
+      // radius 2.5 cm along its left edge) in the same gusty wind; from 0.5 s to 2.5 s the
+      // pole turns (3 rad/s about its axis, carrying the pinned edge): the flag wraps
+      // around it; 4 s.
+      const Index n = side(32);
+      cloth("flag", flagSpec(n), n);
+      body.grid.origin = {0, 1, 0};
+      body.grid.rowAxis = {1, 0, 0};
+      body.grid.columnAxis = {0, -1, 0};
+      PinSpec pole;
+      for (Index r = 0; r < n; ++r) pole.particles.push_back(r * n);
+      KinematicPath turn;
+      turn.center = {-0.03, 0, 0};
+      turn.axis = {0, 1, 0};
+      turn.angularVelocity = 3;
+      turn.startTime = 0.5;
+      turn.endTime = 2.5;
+      pole.path = turn;
+      body.pins.push_back(pole);
+      WindEffect& w = scene.simulation.effects.wind;
+      w.enabled = true;
+      w.velocity = {6, 0, 1};
+      w.gustStrength = 2;
+      w.gustScale = 1.5;
+      w.gustPeriod = 0.8;
+      scene.simulation.collision.obstacles.push_back(Obstacle::capsule({-0.03, -0.2, 0}, {-0.03, 1.2, 0}, 0.025));
+      scene.steps = static_cast<std::int64_t>(std::ceil(4.0 / scene.simulation.dt));
     }
   } else if (name == "rope-on-pegs") {
     // A free 1 m rope (size particles, default 64) falling from 0.3 m across three pegs

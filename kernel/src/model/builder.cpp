@@ -173,9 +173,9 @@ ModelAndState<S> ModelBuilder<S>::build() {
   if (grid_) {
     // The stencil strategy trusts the layout, so check it against the springs exactly.
     const GridLayout<S>& g = *grid_;
-    if (static_cast<long long>(g.width) * g.height != n)
+    if (static_cast<long long>(g.width) * g.height > n)
       throw std::invalid_argument("ModelBuilder::build: grid layout " + std::to_string(g.width) + " x " +
-                                  std::to_string(g.height) + " does not match particle count " + std::to_string(n));
+                                  std::to_string(g.height) + " exceeds the particle count " + std::to_string(n));
     // Every family must stay inside the grid, so the stencil never reads out of bounds.
     for (const GridFamily<S>& f : g.families) {
       const bool rowsInside = (f.rowOffset >= 0) && (f.rowOffset < g.height);
@@ -212,6 +212,8 @@ ModelAndState<S> ModelBuilder<S>::build() {
     // GridStencil evaluates the families' springs and nothing else: a model with springs
     // outside them (e.g. added after addClothGrid) or in two families is not a regular
     // grid, so it gets no layout (Auto then picks Gather) instead of silently wrong forces.
+    // Particles after the grid's (a second cloth, a rope) make it not a single grid either.
+    exactCover = exactCover && static_cast<long long>(g.width) * g.height == n;
     for (Index s = 0; s < m && exactCover; ++s) exactCover = covered[s] != 0;
     if (exactCover) model.grid_ = std::move(grid_);
   }

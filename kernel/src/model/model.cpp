@@ -1,8 +1,10 @@
 #include "weft/model/model.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <mutex>
+#include <vector>
 
 namespace weft {
 
@@ -11,12 +13,13 @@ namespace detail {
 /// The Model's derived data, each piece computed once under its own flag.
 template <class S>
 struct DerivedTopology {
-  std::once_flag springIncidenceOnce, triangleIncidenceOnce, colouringOnce, gridOnce, edgesOnce;
+  std::once_flag springIncidenceOnce, triangleIncidenceOnce, colouringOnce, gridOnce, edgesOnce, surfaceOnce;
   Incidence springIncidence;
   Incidence triangleIncidence;
   SpringColouring<S> colouring;
   bool trianglesFormGrid = false;
   std::vector<Edge> collisionEdges;
+  SurfaceTopology surface;
   std::atomic<int> builds{0};
 };
 
@@ -159,6 +162,51 @@ const std::vector<Edge>& Model<S>::collisionEdges() const {
     ++derived_->builds;
   });
   return derived_->collisionEdges;
+}
+
+template <class S>
+const SurfaceTopology& Model<S>::surfaceTopology() const {
+  std::call_once(derived_->surfaceOnce, [&] {
+    const Triangles& tr = triangles_;
+    const Index t = tr.count();
+    // Sides as (low, high, triangle), sorted: equal sides are adjacent, their first entry
+    // has the lowest triangle, which owns the edge.
+    std::vector<std::array<Index, 3>> sides;
+    sides.reserve(static_cast<size_t>(3 * t));
+    for (Index k = 0; k < t; ++k) {
+      const Index c[3] = {tr.a[k], tr.b[k], tr.c[k]};
+      for (int e = 0; e < 3; ++e) {
+        const Index p = c[e], q = c[(e + 1) % 3];
+        if (p != q) sides.push_back({std::min(p, q), std::max(p, q), k});
+      }
+    }
+    std::sort(sides.begin(), sides.end());
+    SurfaceTopology& out = derived_->surface;
+    std::vector<std::array<Index, 2>> edgeOwner;  // (owner triangle, edge)
+    for (size_t i = 0; i < sides.size(); ++i) {
+      if (i > 0 && sides[i][0] == sides[i - 1][0] && sides[i][1] == sides[i - 1][1]) continue;
+      edgeOwner.push_back({sides[i][2], static_cast<Index>(out.edges.size())});
+      out.edges.push_back({sides[i][0], sides[i][1]});
+    }
+    std::sort(edgeOwner.begin(), edgeOwner.end());
+    out.ownedEdges = buildIncidence(t, static_cast<Index>(edgeOwner.size()), [&](auto&& f) {
+      for (const auto& eo : edgeOwner) f(eo[0], eo[1]);
+    });
+    std::vector<Index> owner(static_cast<size_t>(particleCount()), -1);
+    std::vector<std::array<Index, 2>> vertexOwner;  // (owner triangle, vertex)
+    for (Index k = 0; k < t; ++k)
+      for (const Index v : {tr.a[k], tr.b[k], tr.c[k]})
+        if (owner[static_cast<size_t>(v)] < 0) {
+          owner[static_cast<size_t>(v)] = k;
+          vertexOwner.push_back({k, v});
+        }
+    std::sort(vertexOwner.begin(), vertexOwner.end());
+    out.ownedVertices = buildIncidence(t, static_cast<Index>(vertexOwner.size()), [&](auto&& f) {
+      for (const auto& vo : vertexOwner) f(vo[0], vo[1]);
+    });
+    ++derived_->builds;
+  });
+  return derived_->surface;
 }
 
 template <class S>

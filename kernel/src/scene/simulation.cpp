@@ -22,6 +22,7 @@ const SimulationOptions& validated(const SimulationOptions& o) {
     throw std::invalid_argument("SimulationOptions.gravity must be finite");
   validateEffects(o.effects, "SimulationOptions.effects");
   validateCollision(o.collision, "SimulationOptions.collision");
+  validateSelfCollision(o.selfCollision, "SimulationOptions.selfCollision");
   validateRigidOptions(o.rigid);
   if (std::isnan(o.stability.maxStretch))
     throw std::invalid_argument("SimulationOptions.stability.maxStretch must not be NaN");
@@ -93,6 +94,8 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
                                                    options_.collisionModel);
   }
+  if (options_.selfCollision.enabled)
+    self_ = std::make_unique<SelfCollider<S>>(*model_, options_.selfCollision, state_.x, *executor_);
   if (!options_.rigid.bodies.empty()) {
     const Vec3d& g = options_.gravity;
     rigid_ = std::make_unique<RigidWorld>(options_.rigid, Eigen::Vector3d(g.x, g.y, g.z));
@@ -128,6 +131,12 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
     report.tunnelled = contacts_->countTunnelled(start->x, state_.x, w, start->time - clockStart_, t);
   }
   return report;
+}
+
+template <class S>
+std::int64_t Simulation<S>::selfIntersections() const {
+  if (self_) return self_->intersectingPairs(state_.x, *executor_);
+  return SelfCollider<S>(*model_, options_.selfCollision, state_.x, *executor_).intersectingPairs(state_.x, *executor_);
 }
 
 template <class S>
@@ -263,7 +272,7 @@ StepStatus Simulation<S>::step() {
 
 template <class S>
 StepStatus Simulation<S>::stepParticles() {
-  if (contacts_) return stepWithContacts();
+  if (contacts_ || self_) return stepWithContacts();
   lastWork_ = StepWork{};
   if (advanceChunk(options_.dt)) {
     acceptChunk(options_.dt);
@@ -277,9 +286,9 @@ template <class S>
 StepStatus Simulation<S>::stepWithContacts() {
   const auto start =
       options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-  double integrateSeconds = 0;
+  double integrateSeconds = 0, selfSeconds = 0;
   const double stepStart = state_.time, dt = options_.dt;
-  const CollisionOptions& co = contacts_->options();
+  const CollisionOptions& co = contacts_ ? contacts_->options() : options_.collision;
   const ScalarArray<S>& w = model_->inverseMass();
   // The step is 2^maxHalvings ticks; a chunk is 2^(maxHalvings - halvings) of them, so
   // every chunk length dt * ticks / total is exact and the chunks end exactly at t + dt.
@@ -288,6 +297,7 @@ StepStatus Simulation<S>::stepWithContacts() {
   int halvings = 0;
   lastWork_ = StepWork{};
   lastCollision_ = CollisionStats{};
+  lastSelf_ = SelfCollisionStats{};
   bool ok = true;
   while (done < total) {
     const std::int64_t ticks = std::min(total >> halvings, total - done);
@@ -301,7 +311,7 @@ StepStatus Simulation<S>::stepWithContacts() {
       integrateSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - integrateStart).count();
     if (!ok) break;
     double depth = 0;
-    executor_->run([&] { depth = contacts_->deepestPenetration(nextX_, w, t1, *executor_); });
+    if (contacts_) executor_->run([&] { depth = contacts_->deepestPenetration(nextX_, w, t1, *executor_); });
     if (depth > co.maxPenetration) {
       if (halvings < co.maxHalvings) {  // roll back: the state is untouched; retry with half the chunk
         rejectChunk();
@@ -312,9 +322,18 @@ StepStatus Simulation<S>::stepWithContacts() {
       ++lastCollision_.acceptedDeep;
     }
     CollisionStats found;
-    executor_->run([&] { found = contacts_->resolve(state_.x, nextX_, nextV_, w, t0, t1, *executor_); });
+    if (contacts_) executor_->run([&] { found = contacts_->resolve(state_.x, nextX_, nextV_, w, t0, t1, *executor_); });
     lastCollision_ += found;
-    if (found.contacts > 0 || found.edgeContacts > 0)
+    SelfCollisionStats self;
+    if (self_) {
+      const auto selfStart =
+          options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      executor_->run([&] { self = self_->resolve(state_.x, nextX_, nextV_, w, h, *executor_); });
+      if (options_.profileEffects)
+        selfSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - selfStart).count();
+    }
+    lastSelf_ += self;
+    if (found.contacts > 0 || found.edgeContacts > 0 || self.contacts > 0 || self.frozen > 0)
       integrator_->reset();  // the response changed the candidate it may have cached
     acceptChunk(h);
     done += ticks;
@@ -325,9 +344,11 @@ StepStatus Simulation<S>::stepWithContacts() {
   }
   totalWork_ += lastWork_;
   totalCollision_ += lastCollision_;
+  totalSelf_ += lastSelf_;
   if (options_.profileEffects) {
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    collisionSeconds_ += (wall - integrateSeconds) * executor_->threadCount();
+    collisionSeconds_ += (wall - integrateSeconds - selfSeconds) * executor_->threadCount();
+    selfSeconds_ += selfSeconds * executor_->threadCount();
   }
   return status_;
 }
@@ -338,6 +359,7 @@ SceneEffectTimes Simulation<S>::effectTimes() const {
   t.forces = forces_.effectTimes();
   t.kinematicPins = kinematicSeconds_;
   t.collision = collisionSeconds_;
+  t.selfCollision = selfSeconds_;
   t.rigidBodies = rigidSeconds_;
   return t;
 }

@@ -60,7 +60,7 @@
 //     this, j of other) whose leaf boxes overlap, or whose closed triangles intersect
 //     (the exact test of geometry.hpp).
 //   * selfPairs() / selfIntersectingPairs(x): the same within one BVH, pairs i < j,
-//     skipping pairs that share a vertex index.
+//     skipping pairs that share a vertex index; selfOverlappingPairs() keeps those.
 //   Pair queries expand pairs of nodes breadth first, serially and in a fixed order, into
 //   a front of at least kFrontTasks tasks; the tasks run in parallel. Within a task the
 //   pairs are expanded level by level; a leaf side is a pseudo-node (its box and an empty
@@ -211,6 +211,10 @@ class TriangleBvh {
                          std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
   /// Pairs i < j of this BVH sharing no vertex whose boxes overlap, sorted.
   void selfPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
+  /// Pairs i < j of this BVH whose boxes overlap, those sharing a vertex included, sorted
+  /// (the candidates of the self-collision pass, which also tests a vertex against the
+  /// triangles next to its own).
+  void selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
   /// Pairs i < j sharing no vertex whose closed triangles intersect at x, sorted.
   void selfIntersectingPairs(const Vec3Array<S>& x, std::vector<TrianglePair>& out, BvhPairScratch& scratch,
                              const Executor& exec) const;
@@ -228,7 +232,7 @@ class TriangleBvh {
   void refitWith(const LeafBox& leafBox, const Executor& exec);
   void sortKeys(const Executor& exec);
   void buildHierarchy(const Executor& exec);
-  template <bool kSelf, bool kExact>
+  template <bool kSelf, bool kExact, bool kSkipShared = kSelf>
   void pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
                  std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
 

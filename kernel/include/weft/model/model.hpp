@@ -132,6 +132,8 @@ class Model {
   /// The edges a contact pass tests against mesh edges: the structural and shear springs'
   /// endpoints (a cloth's sides and diagonals, a rope's links), in spring order.
   const std::vector<Edge>& collisionEdges() const;
+  /// The triangles' edges and the vertices and edges each triangle owns (self-collision).
+  const SurfaceTopology& surfaceTopology() const;
   /// How many derived structures this Model (and any copy of it) has computed so far:
   /// a second Simulation on the same Model adds none.
   int derivedBuildCount() const;

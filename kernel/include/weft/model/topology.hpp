@@ -39,6 +39,17 @@ struct Incidence {
   Index end(Index i) const { return offsets[i + 1]; }
 };
 
+/// The triangles' edges and which triangle "owns" each edge and each vertex, for the
+/// self-collision pass (weft/collide/self_collision.hpp): it visits pairs of triangles
+/// whose boxes overlap and tests only the primitives the two triangles own, so every
+/// vertex-triangle and edge-edge pair is tested once. A vertex and an edge are owned by the
+/// lowest-numbered triangle that has them.
+struct SurfaceTopology {
+  std::vector<Edge> edges;  // the triangles' sides, each once as (low, high), ascending
+  Incidence ownedEdges;     // triangle -> the edges (indices into `edges`) it owns
+  Incidence ownedVertices;  // triangle -> the particles it owns
+};
+
 /// The springs permuted into colour order: colour c holds springs [offsets[c],
 /// offsets[c + 1]) of the permuted arrays, no two of which share a particle.
 template <class S>

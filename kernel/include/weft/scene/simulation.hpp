@@ -32,6 +32,7 @@
 
 #include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
+#include "weft/collide/self_collision.hpp"
 #include "weft/core/kinematic_path.hpp"
 #include "weft/integrate/integrator.hpp"
 #include "weft/integrate/stability.hpp"
@@ -64,6 +65,7 @@ struct SimulationOptions {
   IntegratorOptions integration;             // tolerances of rk45, CG settings of implicit
   std::vector<KinematicPins> kinematicPins;  // moving pins; none by default, then free
   CollisionOptions collision;                // obstacles; none by default, then free
+  SelfCollisionOptions selfCollision;        // cloth against itself and other cloths; off by default, then free
   // The mesh obstacles of `collision` prepared once and shared by Simulations (BVHs,
   // closedness, feature edges: weft/collide/collision_model.hpp); none: built for this
   // Simulation. Must be built from `collision`'s meshes, or the Simulation refuses it.
@@ -77,7 +79,8 @@ struct SimulationOptions {
 struct SceneEffectTimes {
   EffectTimes forces;        // drag, wind, repulsion
   double kinematicPins = 0;  // moving the kinematic pins
-  double collision = 0;      // detection, response and rollback decisions (wall time x threads)
+  double collision = 0;      // obstacles: detection, response and rollback decisions (wall time x threads)
+  double selfCollision = 0;  // the self-collision pass (wall time x threads)
   double rigidBodies = 0;    // the rigid bodies' step (wall time x threads)
 };
 
@@ -131,6 +134,15 @@ class Simulation {
   /// particles that tunnelled through an obstacle between it and now. Zeros without
   /// obstacles.
   ContactReport contactReport(const State<S>* start = nullptr) const;
+  /// Self-collision findings of the last step and summed over all steps (zeros when off).
+  const SelfCollisionStats& lastSelfCollision() const { return lastSelf_; }
+  const SelfCollisionStats& totalSelfCollision() const { return totalSelf_; }
+  /// Pairs of triangles sharing no particle that intersect in the current state: the exact
+  /// check of weft/collide/self_collision.hpp, for any model (self-collision on or off).
+  /// Builds a BVH: for reports and tests, not for every step of a fast loop.
+  std::int64_t selfIntersections() const;
+  /// The self-collision pass (null when SimulationOptions::selfCollision is off).
+  const SelfCollider<S>* selfCollider() const { return self_.get(); }
   /// The contact solver (null without obstacles).
   const ContactSolver<S>* contactSolver() const { return contacts_.get(); }
   /// The rigid bodies, stepped with the particles in the same fixed step (null without
@@ -172,7 +184,10 @@ class Simulation {
   // Collision (null without obstacles) and its findings.
   std::unique_ptr<ContactSolver<S>> contacts_;
   CollisionStats lastCollision_, totalCollision_;
+  std::unique_ptr<SelfCollider<S>> self_;  // null unless SimulationOptions::selfCollision.enabled
+  SelfCollisionStats lastSelf_, totalSelf_;
   double collisionSeconds_ = 0;
+  double selfSeconds_ = 0;
   double rigidSeconds_ = 0;
   /// Integrates the chunk [t, t + h] from the state into (nextX_, nextV_), the kinematic
   /// pins on their path; false (status_ set, state untouched) when the check failed.
@@ -182,7 +197,7 @@ class Simulation {
   void rejectChunk();
   /// Swaps the candidate in: t += h.
   void acceptChunk(double h);
-  /// One step through chunks with rollback (obstacles present).
+  /// One step through chunks with rollback (obstacles or self-collision present).
   StepStatus stepWithContacts();
   /// The particles' step (without or with obstacles).
   StepStatus stepParticles();

@@ -1,0 +1,205 @@
+// weft/collide/self_collision.hpp — a cloth against itself and against other cloths:
+// proximity and continuous detection between its own vertices, edges and triangles, a
+// response with friction, and a failsafe that never leaves two triangles intersecting.
+//
+// Design note
+// -----------
+// Every cloth of a Model is one triangle set here, so a cloth folding onto itself and two
+// cloths meeting are the same problem. The pass runs on each chunk x0 -> x1 of a step (the
+// chunks of the collision pipeline, after the obstacles' contact pass), each vertex moving
+// on a straight line over the chunk, time s in [0, 1]:
+//
+//   candidates  The triangles' BVH (built once) is refit with swept boxes (x0 and x1,
+//               inflated by half the thickness plus a skin of half the thickness) and
+//               queried for overlapping triangle pairs, neighbours included. In a pair, each
+//               triangle tests only the vertices and edges it owns (the lowest-numbered
+//               triangle having them, Model::surfaceTopology), so every vertex-triangle (VT)
+//               and edge-edge (EE) pair is listed once; a primitive pair sharing a particle
+//               is skipped, and so is one whose boxes (with the skin) are farther apart than
+//               the thickness. The list is kept while every vertex's x0 and x1 stay inside
+//               its box (as molecular dynamics keeps Verlet lists): a cloth moving a few mm
+//               per step gathers anew every few steps, not every chunk. Each pass then skips
+//               the candidates whose boxes over this chunk (without the skin) are farther
+//               apart than the thickness, a few comparisons, before any distance.
+//   detection   Conservative advancement on the distance d(s) between the moving
+//               primitives. d is Lipschitz in s with the constant L = the largest relative
+//               displacement of a vertex of one primitive against a vertex of the other
+//               (the closest points are convex combinations of the corners), so from s the
+//               distance stays above theta / 2 until s + (d(s) - theta / 2) / L. Stepping so,
+//               and always evaluating s = 1, a query either finds an s with d(s) < theta or
+//               proves d >= theta / 2 on all of [0, 1]: a pair that touches (d = 0) is never
+//               missed, whatever the configuration (coplanar motion, parallel edges, a
+//               vertex on an edge, contact at the start or at the end), because nothing is
+//               solved for: there is no cubic whose roots could be lost. Steps are at least
+//               theta / (2 L) long, so a query costs at most 2 L / theta + 2 distance
+//               evaluations (capped at 64; a capped query reports a contact, which only
+//               costs a response). tests/test_self_collision.cpp checks this against
+//               minimum distances found independently in long double.
+//   response    Each contact (d < thickness at some s) gives a normal n (between the closest
+//               points at s) and weights beta (VT: 1 on the vertex, -b_i on the triangle's
+//               corners at barycentric b; EE: 1 - a, a on one edge, -(1 - b), -b on the
+//               other). Gauss-Seidel over the contacts in a fixed order: the end positions
+//               are pushed apart along n to the thickness (x1_i += w_i beta_i lambda n,
+//               lambda = (thickness - sum beta_i x1_i . n) / sum w_i beta_i^2, w the inverse
+//               masses), an approaching relative normal velocity becomes zero (inelastic),
+//               and the tangential relative velocity feels Coulomb friction bounded by
+//               friction x (normal velocity change + push / chunk length), applied to the
+//               end positions too so a resting layer does not creep. Detection and response
+//               alternate up to `iterations` times; after a response only the candidates
+//               with a vertex it moved (or that were in contact) are advanced again.
+//   failsafe    The last detection also tests every pair against a much smaller threshold
+//               theta = min(thickness / 4, d(0) / 2) (d(0): the pair's distance at the chunk
+//               start). A pair found below it has all its free vertices stopped: they stay
+//               at x0 with zero velocity, the state they had at the start of the chunk.
+//               Detection repeats until no pair is found; each round stops at least one
+//               more vertex, and a pair whose vertices are all stopped cannot approach, so
+//               it ends. Since the chunk started without intersections and no pair came
+//               within theta / 2 > 0 of touching, the chunk ends without intersections. (This
+//               is Provot's and Harmon et al.'s rigid impact zones taken to the zero-velocity
+//               limit: simpler, exact, and it only acts when the impulses did not converge,
+//               at the price of the stopped vertices' momentum; SelfCollisionStats::frozen
+//               says how often.) A pair whose vertices are all pinned or kinematic cannot be
+//               stopped and is counted as unresolved.
+//
+// Work: gathering and detection run in parallel over fixed blocks of triangle pairs, each
+// block writing its own lists; the lists are concatenated in block order and the response runs serially
+// over them, so the result is bitwise the same for any thread count. Buffers are kept, so
+// once warmed up a step allocates nothing. Distances are computed in double for either
+// precision. The exact check (intersectingPairs) is separate: the exact triangle-triangle
+// test of geometry.hpp on every pair of triangles sharing no particle, through the BVH.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "weft/collide/bvh.hpp"
+#include "weft/collide/geometry.hpp"
+#include "weft/core/parallel.hpp"
+#include "weft/core/types.hpp"
+#include "weft/model/model.hpp"
+
+namespace weft {
+
+struct SelfCollisionOptions {
+  bool enabled = false;      // off: the step has no self-collision pass at all
+  double thickness = 0.004;  // m (> 0): the distance kept between layers of cloth; keep it below
+                             // about half the cloth's shortest edge, or neighbours count as layers
+  double friction = 0.3;     // Coulomb coefficient of cloth on cloth (>= 0)
+  int iterations = 3;        // detection + response passes per chunk (1 .. 64) before the failsafe
+};
+
+/// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.
+void validateSelfCollision(const SelfCollisionOptions& options, const char* where = "self_collision");
+
+/// Self-collision work and findings, per step and summed.
+struct SelfCollisionStats {
+  std::int64_t passes = 0;          // detections run (response passes and failsafe rounds)
+  std::int64_t rebuilds = 0;        // of which gathered new candidates (a vertex left its skin box)
+  std::int64_t candidates = 0;      // triangle pairs whose boxes overlap, summed over the gatherings
+  std::int64_t tests = 0;           // VT and EE pairs whose swept boxes overlap, tested by advancement
+  std::int64_t contacts = 0;        // of which closer than the thickness at some time: responded to
+  std::int64_t vertexTriangle = 0;  // contacts that were VT pairs (the rest EE)
+  std::int64_t failsafeChunks = 0;  // chunks in which the failsafe stopped vertices
+  std::int64_t frozen = 0;          // vertices it stopped
+  std::int64_t unresolved = 0;      // pairs it could not stop (every vertex pinned or kinematic)
+  SelfCollisionStats& operator+=(const SelfCollisionStats& o);
+};
+
+/// What a continuous proximity query found (primitiveContact below).
+struct PrimitiveContact {
+  bool hit = false;
+  bool capped = false;               // the step cap was reached: reported as a contact without proof
+  double time = 0;                   // s in [0, 1] where the distance was below the threshold
+  double distance = 0;               // the distance there, m
+  double weights[4] = {0, 0, 0, 0};  // beta of the four vertices (see the design note)
+  double normal[3] = {0, 0, 0};      // unit, towards the first primitive; zero if undefined
+};
+
+/// A moving point p against a moving triangle (a, b, c), or a moving edge (p, a) against a
+/// moving edge (b, c): index 0 of each array is the position at s = 0, index 1 at s = 1.
+/// Returns the first s found with distance < threshold (> 0), starting at `start`; no hit
+/// proves the distance stayed >= threshold / 2 over [start, 1].
+PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<double> a[2], const Vec3<double> b[2],
+                                       const Vec3<double> c[2], double threshold, double start = 0);
+PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
+                                 const Vec3<double> b[2], double threshold, double start = 0);
+
+/// The self-collision pass of one Model (see the design note). Sized at construction.
+template <class S>
+class SelfCollider {
+ public:
+  /// The model's triangles (none: the pass does nothing); its BVH is built over x.
+  SelfCollider(const Model<S>& model, const SelfCollisionOptions& options, const Vec3Array<S>& x, const Executor& exec);
+
+  /// Resolves the chunk x0 -> x1 (length h, s) in place: x1 and v1 change.
+  SelfCollisionStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
+                             double h, const Executor& exec);
+
+  /// Pairs of triangles sharing no particle that intersect at x (exact; allocates a BVH:
+  /// for reports and tests, not for the step).
+  std::int64_t intersectingPairs(const Vec3Array<S>& x, const Executor& exec) const;
+
+  const SelfCollisionOptions& options() const { return options_; }
+
+  static constexpr Index kGrain = 256;  // triangle pairs per detection block
+
+ private:
+  struct Candidate {
+    Index vertex[4];  // VT: the vertex, then the triangle's corners; EE: one edge, then the other
+    bool vertexTriangle;
+    bool hit;  // in contact in the last pass
+  };
+  struct Contact {
+    Index vertex[4];  // as the candidate's
+    int count;
+    bool vertexTriangle;
+    bool guard;  // also below the failsafe's threshold
+    double weights[4];
+    double normal[3];
+  };
+  /// One block of kGrain triangle pairs: its candidates, and what the last pass found.
+  struct Block {
+    std::vector<Candidate> candidates;
+    std::vector<Contact> contacts;
+    std::int64_t tests = 0;
+  };
+  /// Whether every vertex's x0 and x1 lie in its skin box (then the candidates cover the chunk).
+  bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
+  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates.
+  void gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
+                        SelfCollisionStats& stats);
+  /// Advancement on every candidate for the chunk x0 -> x1 into blocks_ (with the failsafe's
+  /// flags when guard_).
+  void detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
+              SelfCollisionStats& stats);
+  /// Gauss-Seidel over the contacts found, in block order; returns how many.
+  std::int64_t respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
+                       SelfCollisionStats& stats);
+
+  static constexpr Index kVertexGrain = 4096;
+  /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
+  /// chunk's, and kept while every vertex stays inside its box.
+  static constexpr double kSkin = 0.5;
+
+  const Model<S>* model_;
+  SelfCollisionOptions options_;
+  TriangleBvh<S> bvh_;
+  BvhPairScratch scratch_;
+  std::vector<TrianglePair> pairs_;
+  std::vector<Block> blocks_;
+  Index blocksUsed_ = 0;
+  bool guard_ = false;
+  std::vector<std::uint8_t> frozen_;  // (n) stopped by the failsafe in this chunk
+  double skin_ = 0;                   // m
+  Vec3Array<S> skinLo_, skinHi_;      // (n x 3) each vertex's skin box
+  Vec3Array<S> sweptLo_, sweptHi_;    // (n x 3) each vertex's box over the chunk
+  bool candidatesValid_ = false;
+  bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
+  std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
+  std::vector<std::uint8_t> blockFlags_;
+};
+
+extern template class SelfCollider<float>;
+extern template class SelfCollider<double>;
+
+}  // namespace weft

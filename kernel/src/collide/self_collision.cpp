@@ -1,0 +1,561 @@
+// The self-collision pass (see weft/collide/self_collision.hpp): conservative advancement
+// on vertex-triangle and edge-edge distances, a Gauss-Seidel response with friction and
+// the stopping failsafe.
+#include "weft/collide/self_collision.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "closest_point.hpp"
+
+namespace weft {
+
+namespace {
+
+using V = Vec3<double>;
+
+std::string text(double value) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", value);
+  return buf;
+}
+
+/// Closest point of the closed triangle abc to p as barycentric weights (Ericson 5.1.5);
+/// slivers (sin^2 of the angle at a below eps) as their three edges.
+void closestBarycentric(const V& p, const V& a, const V& b, const V& c, double bary[3]) {
+  const V ab = b - a, ac = c - a;
+  const double ab2 = ab.squaredNorm(), ac2 = ac.squaredNorm();
+  if (!(ab.cross(ac).squaredNorm() > std::numeric_limits<double>::epsilon() * ab2 * ac2)) {
+    const V* corner[3] = {&a, &b, &c};
+    double best = std::numeric_limits<double>::infinity();
+    for (int e = 0; e < 3; ++e) {
+      const V& s = *corner[e];
+      const V d = *corner[(e + 1) % 3] - s;
+      const double len2 = d.squaredNorm();
+      double t = len2 > 0 ? (p - s).dot(d) / len2 : 0.0;
+      t = std::clamp(t, 0.0, 1.0);
+      const double dist2 = (p - (s + t * d)).squaredNorm();
+      if (dist2 < best) {
+        best = dist2;
+        bary[e] = 1 - t;
+        bary[(e + 1) % 3] = t;
+        bary[(e + 2) % 3] = 0;
+      }
+    }
+    return;
+  }
+  const auto set = [&](double u, double v, double w) {
+    bary[0] = u;
+    bary[1] = v;
+    bary[2] = w;
+  };
+  const V ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return set(1, 0, 0);
+  const V bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return set(0, 1, 0);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double den = d1 - d3, v = den > 0 ? d1 / den : 0.0;
+    return set(1 - v, v, 0);
+  }
+  const V cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return set(0, 0, 1);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double den = d2 - d6, w = den > 0 ? d2 / den : 0.0;
+    return set(1 - w, 0, w);
+  }
+  const double va = d3 * d6 - d5 * d4, e43 = d4 - d3, e56 = d5 - d6;
+  if (va <= 0 && e43 >= 0 && e56 >= 0) {
+    const double den = e43 + e56, w = den > 0 ? e43 / den : 0.0;
+    return set(0, 1 - w, w);
+  }
+  const double den = va + vb + vc;
+  if (!(den > 0)) return set(1, 0, 0);
+  const double v = vb / den, w = vc / den;
+  set(1 - v - w, v, w);
+}
+
+constexpr int kMaxSteps = 64;
+
+V lerp(const V x[2], double s) { return x[0] + s * (x[1] - x[0]); }
+
+/// Conservative advancement (see the design note). eval(s, gap, weights) returns the
+/// distance at s, the vector between the closest points (towards the first primitive) and
+/// the weights; fallback(s, normal) gives a normal where the distance is zero.
+template <class Eval, class Fallback>
+PrimitiveContact advance(Eval&& eval, Fallback&& fallback, double lipschitz, double threshold, double start) {
+  PrimitiveContact c;
+  double s = std::clamp(start, 0.0, 1.0);
+  V gap;
+  double d = 0;
+  bool found = false;
+  for (int k = 0; k < kMaxSteps; ++k) {
+    d = eval(s, gap, c.weights);
+    if (d < threshold) {
+      found = true;
+      break;
+    }
+    if (!(lipschitz > 0)) return c;
+    const double next = s + (d - 0.5 * threshold) / lipschitz;
+    if (next >= 1) return c;  // d >= threshold / 2 up to s = 1
+    s = next;
+  }
+  if (!found) {  // step cap: report without proof
+    c.capped = true;
+    d = eval(s, gap, c.weights);
+  }
+  c.hit = true;
+  c.time = s;
+  c.distance = d;
+  V n = V::Zero();
+  if (d > 1e-9 * threshold) {
+    n = gap / d;
+  } else {
+    fallback(s, n);
+  }
+  for (int i = 0; i < 3; ++i) c.normal[i] = n[i];
+  return c;
+}
+
+/// The Lipschitz bound: the largest relative displacement between a vertex of the first set
+/// and one of the second, enlarged by a relative 1e-9 for rounding.
+double lipschitz(std::initializer_list<const V*> first, std::initializer_list<const V*> second) {
+  double L2 = 0;
+  for (const V* f : first)
+    for (const V* g : second) L2 = std::max(L2, ((f[1] - f[0]) - (g[1] - g[0])).squaredNorm());
+  return std::sqrt(L2) * (1 + 1e-9);
+}
+
+/// Orients `n` (unit or zero) so that it points from the second primitive to the first at
+/// s = 0 (gap0), or against their relative motion when they touch at s = 0 too.
+void orient(V& n, const V& gap0, const V& relativeMotion) {
+  double side = n.dot(gap0);
+  if (side == 0) side = -n.dot(relativeMotion);
+  if (side < 0) n = -n;
+}
+
+}  // namespace
+
+SelfCollisionStats& SelfCollisionStats::operator+=(const SelfCollisionStats& o) {
+  passes += o.passes;
+  rebuilds += o.rebuilds;
+  candidates += o.candidates;
+  tests += o.tests;
+  contacts += o.contacts;
+  vertexTriangle += o.vertexTriangle;
+  failsafeChunks += o.failsafeChunks;
+  frozen += o.frozen;
+  unresolved += o.unresolved;
+  return *this;
+}
+
+void validateSelfCollision(const SelfCollisionOptions& o, const char* where) {
+  const std::string w = where;
+  if (!(std::isfinite(o.thickness) && o.thickness > 0))
+    throw std::invalid_argument(w + ".thickness must be finite and > 0 (m), got " + text(o.thickness));
+  if (!(std::isfinite(o.friction) && o.friction >= 0))
+    throw std::invalid_argument(w + ".friction must be finite and >= 0, got " + text(o.friction));
+  if (o.iterations < 1 || o.iterations > 64)
+    throw std::invalid_argument(w + ".iterations must be in [1, 64], got " + std::to_string(o.iterations));
+}
+
+PrimitiveContact vertexTriangleContact(const V p[2], const V a[2], const V b[2], const V c[2], double threshold,
+                                       double start) {
+  const auto eval = [&](double s, V& gap, double* weights) {
+    const V ps = lerp(p, s), as = lerp(a, s), bs = lerp(b, s), cs = lerp(c, s);
+    double bary[3];
+    closestBarycentric(ps, as, bs, cs, bary);
+    gap = ps - (bary[0] * as + bary[1] * bs + bary[2] * cs);
+    weights[0] = 1;
+    weights[1] = -bary[0];
+    weights[2] = -bary[1];
+    weights[3] = -bary[2];
+    return gap.norm();
+  };
+  const auto fallback = [&](double s, V& n) {
+    const V as = lerp(a, s), bs = lerp(b, s), cs = lerp(c, s);
+    n = (bs - as).cross(cs - as);
+    const double len = n.norm();
+    if (!(len > 0)) {
+      n = V::Zero();
+      return;
+    }
+    n /= len;
+    double bary[3];
+    closestBarycentric(p[0], a[0], b[0], c[0], bary);
+    const V gap0 = p[0] - (bary[0] * a[0] + bary[1] * b[0] + bary[2] * c[0]);
+    const V motion = (p[1] - p[0]) - (bary[0] * (a[1] - a[0]) + bary[1] * (b[1] - b[0]) + bary[2] * (c[1] - c[0]));
+    orient(n, gap0, motion);
+  };
+  return advance(eval, fallback, lipschitz({p}, {a, b, c}), threshold, start);
+}
+
+PrimitiveContact edgeEdgeContact(const V p[2], const V q[2], const V a[2], const V b[2], double threshold,
+                                 double start) {
+  const auto eval = [&](double s, V& gap, double* weights) {
+    const V ps = lerp(p, s), qs = lerp(q, s), as = lerp(a, s), bs = lerp(b, s);
+    double u = 0, v = 0;
+    V c1, c2;
+    detail::closestSegmentSegment(ps, qs, as, bs, u, v, c1, c2);
+    gap = c1 - c2;
+    weights[0] = 1 - u;
+    weights[1] = u;
+    weights[2] = -(1 - v);
+    weights[3] = -v;
+    return gap.norm();
+  };
+  const auto fallback = [&](double s, V& n) {
+    const V ps = lerp(p, s), qs = lerp(q, s), as = lerp(a, s), bs = lerp(b, s);
+    n = (qs - ps).cross(bs - as);
+    const double len = n.norm();
+    if (!(len > 1e-12 * (qs - ps).norm() * (bs - as).norm()) || !(len > 0)) {
+      n = V::Zero();  // parallel edges touching: no normal (the failsafe handles the pair)
+      return;
+    }
+    n /= len;
+    double u = 0, v = 0;
+    V c1, c2;
+    detail::closestSegmentSegment(p[0], q[0], a[0], b[0], u, v, c1, c2);
+    const V motion = ((1 - u) * (p[1] - p[0]) + u * (q[1] - q[0])) - ((1 - v) * (a[1] - a[0]) + v * (b[1] - b[0]));
+    orient(n, c1 - c2, motion);
+  };
+  return advance(eval, fallback, lipschitz({p, q}, {a, b}), threshold, start);
+}
+
+template <class S>
+SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions& options, const Vec3Array<S>& x,
+                              const Executor& exec)
+    : model_(&model), options_(options) {
+  validateSelfCollision(options_, "SelfCollisionOptions");
+  skin_ = kSkin * options_.thickness;
+  if (model.triangleCount() > 0) {
+    (void)model.surfaceTopology();  // derived once per Model
+    bvh_.build(x, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+  }
+  frozen_.assign(static_cast<size_t>(model.particleCount()), 0);
+  moved_.assign(static_cast<size_t>(model.particleCount()), 0);
+  skinLo_.resize(model.particleCount(), 3);
+  sweptLo_.resize(model.particleCount(), 3);
+  sweptHi_.resize(model.particleCount(), 3);
+  skinHi_.resize(model.particleCount(), 3);
+}
+
+template <class S>
+bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec) {
+  if (!candidatesValid_) return false;
+  const Index n = model_->particleCount();
+  const Index blocks = Executor::blockCount(n, kVertexGrain);
+  blockFlags_.assign(static_cast<size_t>(blocks), 1);
+  exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        const S lo = skinLo_(i, a), hi = skinHi_(i, a);
+        inside = inside && x0(i, a) >= lo && x0(i, a) <= hi && x1(i, a) >= lo && x1(i, a) <= hi;
+      }
+    blockFlags_[static_cast<size_t>(k)] = inside ? 1 : 0;
+  });
+  return std::all_of(blockFlags_.begin(), blockFlags_.end(), [](std::uint8_t f) { return f != 0; });
+}
+
+template <class S>
+void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
+                                       SelfCollisionStats& stats) {
+  const Index n = model_->particleCount();
+  const S skin = static_cast<S>(skin_);
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        skinLo_(i, a) = std::min(x0(i, a), x1(i, a)) - skin;
+        skinHi_(i, a) = std::max(x0(i, a), x1(i, a)) + skin;
+      }
+  });
+  bvh_.refitSwept(x0, x1, exec);  // margin: half the thickness + the skin
+  bvh_.selfOverlappingPairs(pairs_, scratch_, exec);
+  ++stats.rebuilds;
+  stats.candidates += static_cast<std::int64_t>(pairs_.size());
+  const Index count = static_cast<Index>(pairs_.size());
+  const Index blocks = Executor::blockCount(count, kGrain);
+  if (static_cast<Index>(blocks_.size()) < blocks) blocks_.resize(static_cast<size_t>(blocks));
+  blocksUsed_ = blocks;
+  const Triangles& tr = model_->triangles();
+  const SurfaceTopology& topo = model_->surfaceTopology();
+  const double thickness = options_.thickness;
+  // Whether the skin boxes of two primitives are farther apart than the thickness (then
+  // they cannot come that close while every vertex stays in its skin box).
+  const auto apart = [&](std::initializer_list<Index> first, std::initializer_list<Index> second) {
+    for (int a = 0; a < 3; ++a) {
+      double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
+      for (const Index i : first) {
+        lo1 = std::min(lo1, static_cast<double>(skinLo_(i, a)));
+        hi1 = std::max(hi1, static_cast<double>(skinHi_(i, a)));
+      }
+      for (const Index i : second) {
+        lo2 = std::min(lo2, static_cast<double>(skinLo_(i, a)));
+        hi2 = std::max(hi2, static_cast<double>(skinHi_(i, a)));
+      }
+      if (lo1 > hi2 + thickness || lo2 > hi1 + thickness) return true;
+    }
+    return false;
+  };
+  exec.parallelForBlocks(count, kGrain, [&](Index blockIndex, Index begin, Index end) {
+    std::vector<Candidate>& out = blocks_[static_cast<size_t>(blockIndex)].candidates;
+    out.clear();
+    for (Index pi = begin; pi < end; ++pi) {
+      const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
+      const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
+      const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
+      // Vertices owned by one triangle against the other.
+      for (int side = 0; side < 2; ++side) {
+        const Index owner = side == 0 ? pair.first : pair.second;
+        const Index* other = side == 0 ? tb : ta;
+        for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
+          const Index v = topo.ownedVertices.entries[k];
+          if (v == other[0] || v == other[1] || v == other[2]) continue;
+          if (apart({v}, {other[0], other[1], other[2]})) continue;
+          out.push_back({{v, other[0], other[1], other[2]}, true, false});
+        }
+      }
+      // Edges owned by one against edges owned by the other.
+      for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
+        const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
+        for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
+          const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
+          if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
+          if (apart({e[0], e[1]}, {f[0], f[1]})) continue;
+          out.push_back({{e[0], e[1], f[0], f[1]}, false, false});
+        }
+      }
+    }
+  });
+  candidatesValid_ = true;
+}
+
+template <class S>
+void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
+                             const Executor& exec, SelfCollisionStats& stats) {
+  if (!candidatesCover(x0, x1, exec)) {
+    gatherCandidates(x0, x1, exec, stats);
+    onlyMoved_ = false;  // new candidates: test them all
+  }
+  ++stats.passes;
+  const Index n = model_->particleCount();
+  const double thickness = options_.thickness;
+  const S* c0[3] = {x0.data(), x0.data() + n, x0.data() + 2 * n};
+  const S* c1[3] = {x1.data(), x1.data() + n, x1.data() + 2 * n};
+  const auto at = [&](Index i, V out[2]) {
+    out[0] = V(c0[0][i], c0[1][i], c0[2][i]);
+    out[1] = V(c1[0][i], c1[1][i], c1[2][i]);
+  };
+  // This chunk's swept box of every vertex: a candidate whose boxes are farther apart than
+  // the thickness is not advanced (most candidates of a folded cloth: the skin keeps
+  // candidates for boxes larger than the chunk's).
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        sweptLo_(i, a) = std::min(x0(i, a), x1(i, a));
+        sweptHi_(i, a) = std::max(x0(i, a), x1(i, a));
+      }
+  });
+  const auto apartNow = [&](const Index* v, int split) {
+    for (int a = 0; a < 3; ++a) {
+      S lo1 = sweptLo_(v[0], a), hi1 = sweptHi_(v[0], a), lo2 = sweptLo_(v[3], a), hi2 = sweptHi_(v[3], a);
+      for (int i = 1; i < 3; ++i) {
+        if (i < split) {
+          lo1 = std::min(lo1, sweptLo_(v[i], a));
+          hi1 = std::max(hi1, sweptHi_(v[i], a));
+        } else {
+          lo2 = std::min(lo2, sweptLo_(v[i], a));
+          hi2 = std::max(hi2, sweptHi_(v[i], a));
+        }
+      }
+      // (lo - hi) - thickness in S may round: compare with a margin of a relative 1e-6.
+      if (static_cast<double>(lo1) - static_cast<double>(hi2) > thickness * (1 + 1e-6) ||
+          static_cast<double>(lo2) - static_cast<double>(hi1) > thickness * (1 + 1e-6))
+        return true;
+    }
+    return false;
+  };
+  const bool guard = guard_;
+  // After a response only the candidates it moved a vertex of (or that were in contact)
+  // can have changed; the others keep their answer (no contact).
+  const bool all = !onlyMoved_;
+  const std::uint8_t* moved = moved_.data();
+  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
+    for (Index k = kb; k < ke; ++k) {
+      Block& block = blocks_[static_cast<size_t>(k)];
+      block.contacts.clear();
+      block.tests = 0;
+      for (Candidate& cand : block.candidates) {
+        const Index* v = cand.vertex;
+        if (!(all || cand.hit || (moved[v[0]] | moved[v[1]] | moved[v[2]] | moved[v[3]]))) continue;
+        cand.hit = false;
+        if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) continue;
+        if (apartNow(v, cand.vertexTriangle ? 1 : 2)) continue;
+        ++block.tests;
+        V p[4][2];
+        for (int i = 0; i < 4; ++i) at(v[i], p[i]);
+        const auto query = [&](double threshold, double start) {
+          return cand.vertexTriangle ? vertexTriangleContact(p[0], p[1], p[2], p[3], threshold, start)
+                                     : edgeEdgeContact(p[0], p[1], p[2], p[3], threshold, start);
+        };
+        const PrimitiveContact hit = query(thickness, 0);
+        if (!hit.hit) continue;
+        cand.hit = true;
+        Contact c;
+        for (int i = 0; i < 4; ++i) {
+          c.vertex[i] = v[i];
+          c.weights[i] = hit.weights[i];
+        }
+        for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
+        c.count = 4;
+        c.vertexTriangle = cand.vertexTriangle;
+        c.guard = false;
+        if (guard) {
+          // The failsafe's threshold: a quarter of the thickness, or half the distance at the
+          // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
+          const double d0 = query(std::numeric_limits<double>::infinity(), 0).distance;
+          const double theta = std::min(0.25 * thickness, 0.5 * d0);
+          c.guard = theta > 0 && query(theta, hit.time).hit;
+        }
+        block.contacts.push_back(c);
+      }
+    }
+  });
+  for (Index k = 0; k < blocksUsed_; ++k) stats.tests += blocks_[static_cast<size_t>(k)].tests;
+}
+
+template <class S>
+std::int64_t SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
+                                      SelfCollisionStats& stats) {
+  const double thickness = options_.thickness, mu = options_.friction;
+  std::int64_t contacts = 0;
+  for (Index k = 0; k < blocksUsed_; ++k) {
+    for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
+      ++contacts;
+      ++stats.contacts;
+      stats.vertexTriangle += c.vertexTriangle ? 1 : 0;
+      const V n(c.normal[0], c.normal[1], c.normal[2]);
+      if (n.squaredNorm() == 0) continue;  // no normal: left to the failsafe
+      double sw = 0, s1 = 0;
+      V vr = V::Zero();
+      double wi[4];
+      for (int i = 0; i < 4; ++i) {
+        const Index j = c.vertex[i];
+        wi[i] = static_cast<double>(w[j]);
+        sw += wi[i] * c.weights[i] * c.weights[i];
+        s1 += c.weights[i] * (static_cast<double>(x1(j, 0)) * n[0] + static_cast<double>(x1(j, 1)) * n[1] +
+                              static_cast<double>(x1(j, 2)) * n[2]);
+        vr += c.weights[i] * V(v1(j, 0), v1(j, 1), v1(j, 2));
+      }
+      if (!(sw > 0)) continue;
+      const auto apply = [&](const V& dx, const V& dv) {  // relative changes, distributed by w beta / sw
+        for (int i = 0; i < 4; ++i) {
+          const double f = wi[i] * c.weights[i] / sw;
+          if (f == 0) continue;
+          const Index j = c.vertex[i];
+          moved_[static_cast<size_t>(j)] = 1;
+          for (int a = 0; a < 3; ++a) {
+            x1(j, a) = static_cast<S>(static_cast<double>(x1(j, a)) + f * dx[a]);
+            v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + f * dv[a]);
+          }
+        }
+      };
+      const double push = std::max(0.0, thickness - s1);
+      const double vn = vr.dot(n);
+      const double dvn = vn < 0 ? -vn : 0.0;
+      // Friction: the tangential relative velocity, reduced by at most mu x the normal change.
+      const V vt = vr - vn * n;
+      const double vtLength = vt.norm();
+      const double budget = mu * (dvn + push / h);
+      const double scale = vtLength > 0 ? std::min(1.0, budget / vtLength) : 0.0;
+      const V dvt = -scale * vt;
+      apply(push * n + h * dvt, dvn * n + dvt);
+    }
+  }
+  return contacts;
+}
+
+template <class S>
+SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
+                                            const ScalarArray<S>& w, double h, const Executor& exec) {
+  SelfCollisionStats stats;
+  if (bvh_.triangleCount() < 2) return stats;
+  for (int pass = 0;; ++pass) {
+    guard_ = pass == options_.iterations;
+    onlyMoved_ = pass > 0;
+    detect(x0, x1, w, exec, stats);
+    std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
+    bool any = false;
+    for (Index k = 0; k < blocksUsed_ && !any; ++k) any = !blocks_[static_cast<size_t>(k)].contacts.empty();
+    if (!any) return stats;  // no pair within the thickness / 2: nothing can intersect
+    if (!guard_) {
+      respond(x1, v1, w, h, stats);
+      continue;
+    }
+    break;
+  }
+  // The failsafe: stop the free vertices of every pair that came too close, until none does.
+  std::fill(frozen_.begin(), frozen_.end(), std::uint8_t{0});
+  bool counted = false;
+  for (;;) {
+    std::int64_t stopped = 0, stuck = 0, hits = 0;
+    for (Index k = 0; k < blocksUsed_; ++k) {
+      for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
+        if (!c.guard) continue;
+        ++hits;
+        bool any = false;
+        for (int i = 0; i < c.count; ++i) {
+          const Index j = c.vertex[i];
+          if (w[j] == S(0) || frozen_[static_cast<size_t>(j)]) continue;
+          frozen_[static_cast<size_t>(j)] = 1;
+          moved_[static_cast<size_t>(j)] = 1;
+          for (int a = 0; a < 3; ++a) {
+            x1(j, a) = x0(j, a);
+            v1(j, a) = S(0);
+          }
+          ++stopped;
+          any = true;
+        }
+        stuck += any ? 0 : 1;
+      }
+    }
+    if (hits == 0) break;
+    if (!counted) {
+      ++stats.failsafeChunks;
+      counted = true;
+    }
+    stats.frozen += stopped;
+    if (stopped == 0) {
+      stats.unresolved += stuck;
+      break;
+    }
+    guard_ = true;
+    onlyMoved_ = true;
+    detect(x0, x1, w, exec, stats);
+    std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
+  }
+  return stats;
+}
+
+template <class S>
+std::int64_t SelfCollider<S>::intersectingPairs(const Vec3Array<S>& x, const Executor& exec) const {
+  if (model_->triangleCount() < 2) return 0;
+  TriangleBvh<S> bvh;
+  bvh.build(x, model_->triangles(), exec, 0);
+  std::vector<TrianglePair> pairs;
+  BvhPairScratch scratch;
+  bvh.selfIntersectingPairs(x, pairs, scratch, exec);
+  return static_cast<std::int64_t>(pairs.size());
+}
+
+template class SelfCollider<float>;
+template class SelfCollider<double>;
+
+}  // namespace weft

@@ -1,0 +1,440 @@
+// tests/test_self_collision.cpp — cloth against itself and against other cloths
+// (weft/collide/self_collision.hpp).
+//
+//  * The continuous proximity queries never miss a touching pair: random, near-degenerate
+//    (coplanar motion, parallel edges, a vertex on an edge, contact at the start or the
+//    end) and adversarial queries against minimum distances found independently in long
+//    double (dense sampling refined by golden section; a sampled minimum is an upper bound
+//    of the true one, so "sampled minimum < threshold / 2 but no hit" is a proven miss).
+//    False positives (a hit where the distance never came below the threshold) are
+//    counted and printed.
+//  * The hard scenes (fold, two-cloths, twist, flag-pole), small, step by step: zero
+//    intersecting pairs of triangles after every step, in float and double; without
+//    self-collision the same scenes do intersect (so the check has something to find).
+//  * 1 and 2 threads give the same bits; bad options are refused by field.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "weft/io/scene.hpp"
+#include "weft/weft.hpp"
+
+namespace {
+
+using namespace weft;
+using V = Vec3<double>;
+using L = long double;
+
+struct LV {
+  L x = 0, y = 0, z = 0;
+  LV() = default;
+  LV(L a, L b, L c) : x(a), y(b), z(c) {}
+  explicit LV(const V& v) : x(v[0]), y(v[1]), z(v[2]) {}
+  LV operator+(const LV& o) const { return {x + o.x, y + o.y, z + o.z}; }
+  LV operator-(const LV& o) const { return {x - o.x, y - o.y, z - o.z}; }
+  LV operator*(L s) const { return {x * s, y * s, z * s}; }
+  L dot(const LV& o) const { return x * o.x + y * o.y + z * o.z; }
+  LV cross(const LV& o) const { return {y * o.z - z * o.y, z * o.x - x * o.z, x * o.y - y * o.x}; }
+  L norm() const { return std::sqrt(dot(*this)); }
+};
+
+/// Distance from p to the segment ab, long double.
+L pointSegment(const LV& p, const LV& a, const LV& b) {
+  const LV d = b - a;
+  const L len2 = d.dot(d);
+  L t = len2 > 0 ? (p - a).dot(d) / len2 : 0;
+  t = std::clamp<L>(t, 0, 1);
+  return (p - (a + d * t)).norm();
+}
+
+/// Distance from p to the closed triangle abc, long double: the plane distance when the
+/// projection falls inside (all three edge orientations agree), else the nearest edge.
+L pointTriangle(const LV& p, const LV& a, const LV& b, const LV& c) {
+  const LV n = (b - a).cross(c - a);
+  const L n2 = n.dot(n);
+  L best = std::min({pointSegment(p, a, b), pointSegment(p, b, c), pointSegment(p, c, a)});
+  if (n2 > 0) {
+    const L h = (p - a).dot(n) / n2;
+    const LV q = p - n * h;
+    const L s1 = (b - a).cross(q - a).dot(n), s2 = (c - b).cross(q - b).dot(n), s3 = (a - c).cross(q - c).dot(n);
+    if ((s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0))
+      best = std::min(best, std::abs(h) * std::sqrt(n2));
+  }
+  return best;
+}
+
+/// Distance between the segments pq and ab, long double: the endpoint distances, and the
+/// lines' distance when their closest points fall inside both segments.
+L segmentSegment(const LV& p, const LV& q, const LV& a, const LV& b) {
+  L best = std::min({pointSegment(p, a, b), pointSegment(q, a, b), pointSegment(a, p, q), pointSegment(b, p, q)});
+  const LV d1 = q - p, d2 = b - a, r = p - a;
+  const L A = d1.dot(d1), E = d2.dot(d2), B = d1.dot(d2), C = d1.dot(r), F = d2.dot(r);
+  const L den = A * E - B * B;
+  if (den > 1e-30L * A * E) {
+    const L s = (B * F - C * E) / den, t = (A * F - B * C) / den;
+    if (s >= 0 && s <= 1 && t >= 0 && t <= 1) best = std::min(best, ((p + d1 * s) - (a + d2 * t)).norm());
+  }
+  return best;
+}
+
+LV at(const V x[2], L s) { return LV(x[0]) + (LV(x[1]) - LV(x[0])) * s; }
+
+/// The minimum over s in [0, 1] of f(s), sampled at 2001 points and refined around the best
+/// three by golden section: an upper bound of the true minimum (and close to it).
+template <class F>
+L sampledMinimum(F&& f) {
+  constexpr int kSamples = 2000;
+  std::vector<std::pair<L, int>> values;
+  values.reserve(kSamples + 1);
+  for (int k = 0; k <= kSamples; ++k) values.push_back({f(L(k) / kSamples), k});
+  std::partial_sort(values.begin(), values.begin() + 3, values.end());
+  L best = values[0].first;
+  for (int r = 0; r < 3; ++r) {
+    L lo = std::max<L>(0, L(values[r].second - 1) / kSamples), hi = std::min<L>(1, L(values[r].second + 1) / kSamples);
+    const L g = (std::sqrt(L(5)) - 1) / 2;
+    for (int it = 0; it < 80; ++it) {
+      const L m1 = hi - g * (hi - lo), m2 = lo + g * (hi - lo);
+      const L f1 = f(m1), f2 = f(m2);
+      best = std::min({best, f1, f2});
+      if (f1 < f2)
+        hi = m2;
+      else
+        lo = m1;
+    }
+  }
+  return best;
+}
+
+struct Query {
+  bool vertexTriangle = true;
+  V x[4][2];  // four vertices at s = 0 and s = 1
+};
+
+L trueMinimum(const Query& q) {
+  return sampledMinimum([&](L s) {
+    return q.vertexTriangle ? pointTriangle(at(q.x[0], s), at(q.x[1], s), at(q.x[2], s), at(q.x[3], s))
+                            : segmentSegment(at(q.x[0], s), at(q.x[1], s), at(q.x[2], s), at(q.x[3], s));
+  });
+}
+
+PrimitiveContact ask(const Query& q, double threshold) {
+  return q.vertexTriangle ? vertexTriangleContact(q.x[0], q.x[1], q.x[2], q.x[3], threshold)
+                          : edgeEdgeContact(q.x[0], q.x[1], q.x[2], q.x[3], threshold);
+}
+
+/// Hand-made degenerate and adversarial queries (the motion of every vertex is linear).
+std::vector<Query> degenerateQueries() {
+  std::vector<Query> out;
+  const auto vt = [&](V p0, V p1, V a0, V a1, V b0, V b1, V c0, V c1) {
+    Query q;
+    q.vertexTriangle = true;
+    q.x[0][0] = p0, q.x[0][1] = p1, q.x[1][0] = a0, q.x[1][1] = a1, q.x[2][0] = b0, q.x[2][1] = b1, q.x[3][0] = c0,
+    q.x[3][1] = c1;
+    out.push_back(q);
+  };
+  const auto ee = [&](V p0, V p1, V q0, V q1, V a0, V a1, V b0, V b1) {
+    Query q;
+    q.vertexTriangle = false;
+    q.x[0][0] = p0, q.x[0][1] = p1, q.x[1][0] = q0, q.x[1][1] = q1, q.x[2][0] = a0, q.x[2][1] = a1, q.x[3][0] = b0,
+    q.x[3][1] = b1;
+    out.push_back(q);
+  };
+  const V a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  // A vertex straight through the face, through an edge, through a corner.
+  vt({0.25, 0.25, 1}, {0.25, 0.25, -1}, a, a, b, b, c, c);
+  vt({0.5, 0, 1}, {0.5, 0, -1}, a, a, b, b, c, c);
+  vt({0, 0, 1}, {0, 0, -1}, a, a, b, b, c, c);
+  // Coplanar: the vertex slides in the triangle's plane into it, along an edge's line, onto a corner.
+  vt({2, 0.2, 0}, {-1, 0.2, 0}, a, a, b, b, c, c);
+  vt({3, 0, 0}, {0.5, 0, 0}, a, a, b, b, c, c);
+  vt({-1, -1, 0}, {0, 0, 0}, a, a, b, b, c, c);
+  // Contact at the start, at the end, throughout.
+  vt({0.2, 0.2, 0}, {0.2, 0.2, 1}, a, a, b, b, c, c);
+  vt({0.2, 0.2, 1}, {0.2, 0.2, 0}, a, a, b, b, c, c);
+  vt({0.2, 0.2, 0}, {0.3, 0.1, 0}, a, a, b, b, c, c);
+  // The triangle moves onto a resting vertex; the triangle flips through it (rotates).
+  vt({0.2, 0.2, 0}, {0.2, 0.2, 0}, {0, 0, 1}, {0, 0, -1}, {1, 0, 1}, {1, 0, -1}, {0, 1, 1}, {0, 1, -1});
+  vt({0.3, 0.3, 0}, {0.3, 0.3, 0}, {0, 0, -1}, {0, 0, 1}, {1, 0, 1}, {1, 0, -1}, {0, 1, 0}, {0, 1, 0});
+  // A degenerate (collinear) triangle swept through a vertex.
+  vt({0.5, 0, 0}, {0.5, 0, 0}, {0, 1, 0}, {0, -1, 0}, {1, 1, 0}, {1, -1, 0}, {2, 1, 0}, {2, -1, 0});
+  // Edges: crossing, parallel sliding onto each other, collinear overlapping, touching at an end.
+  ee({0.5, -1, 1}, {0.5, -1, -1}, {0.5, 1, 1}, {0.5, 1, -1}, {0, 0, 0}, {0, 0, 0}, {1, 0, 0}, {1, 0, 0});
+  ee({0, 1, 0}, {0, 0, 0}, {1, 1, 0}, {1, 0, 0}, {0.5, 0, 0}, {0.5, 0, 0}, {2, 0, 0}, {2, 0, 0});
+  ee({-2, 0, 0}, {0, 0, 0}, {-1, 0, 0}, {1, 0, 0}, {0.5, 0, 0}, {0.5, 0, 0}, {2, 0, 0}, {2, 0, 0});
+  ee({1, 1, 0}, {1, 0, 0}, {1, 2, 0}, {1, 1, 0}, {0, 0, 0}, {0, 0, 0}, {1, 0, 0}, {1, 0, 0});
+  ee({0, 0, 0}, {0, 0, 0}, {1, 0, 0}, {1, 0, 0}, {0, 0, 0}, {0, 0, 0}, {1, 0, 0}, {1, 0, 0});  // identical, resting
+  // Parallel edges in parallel planes, one passing through the other's plane (coplanar at s = 1/2).
+  ee({0, 0, 1}, {0, 0, -1}, {1, 0, 1}, {1, 0, -1}, {0.5, 0, 0}, {0.5, 0, 0}, {1.5, 0, 0}, {1.5, 0, 0});
+  // Grazing: the vertex passes at a quarter of the threshold (below half: must be found).
+  vt({0.25, 0.25, 1}, {0.25, 0.25, -1}, {0, 0, 0.25e-3}, {0, 0, 0.25e-3}, {1, 0, 0.25e-3}, {1, 0, 0.25e-3},
+     {0, 1, 0.25e-3}, {0, 1, 0.25e-3});
+  return out;
+}
+
+TEST(SelfCollisionQuery, NeverMissesATouchingPair) {
+  constexpr double kThreshold = 1e-3;
+  std::vector<Query> queries = degenerateQueries();
+  const size_t handMade = queries.size();
+  std::mt19937_64 rng(20261125);
+  std::uniform_int_distribution<int> grid(-4, 4);  // small integer grids: full of coplanar and collinear cases
+  std::uniform_real_distribution<double> real(-1, 1);
+  for (int k = 0; k < 3000; ++k) {
+    Query q;
+    q.vertexTriangle = k % 2 == 0;
+    const bool onGrid = k % 3 != 0;
+    for (auto& vertex : q.x)
+      for (V& p : vertex) p = onGrid ? V(grid(rng), grid(rng), grid(rng)) * 0.25 : V(real(rng), real(rng), real(rng));
+    if (k % 5 == 0)  // a planar scene: everything in z = 0
+      for (auto& vertex : q.x)
+        for (V& p : vertex) p[2] = 0;
+    queries.push_back(q);
+  }
+  int misses = 0, falsePositives = 0, touching = 0, hits = 0, capped = 0;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    const Query& q = queries[i];
+    const L minimum = trueMinimum(q);
+    const PrimitiveContact c = ask(q, kThreshold);
+    hits += c.hit ? 1 : 0;
+    capped += c.capped ? 1 : 0;
+    touching += minimum < 1e-12L ? 1 : 0;
+    if (!c.hit && minimum < L(0.5 * kThreshold)) {
+      ++misses;
+      ADD_FAILURE() << "query " << i << (i < handMade ? " (hand-made)" : "") << ": minimum distance "
+                    << static_cast<double>(minimum) << " < threshold / 2, not found";
+    }
+    if (c.hit && minimum > L(kThreshold) * (1 + 1e-9L)) ++falsePositives;
+    if (c.hit && !c.capped) {  // a reported contact is real: the distance there is below the threshold
+      EXPECT_LT(c.distance, kThreshold) << "query " << i;
+      const double n = std::sqrt(c.normal[0] * c.normal[0] + c.normal[1] * c.normal[1] + c.normal[2] * c.normal[2]);
+      EXPECT_TRUE(n == 0 || std::abs(n - 1) < 1e-9) << "query " << i;
+    }
+  }
+  EXPECT_EQ(misses, 0);
+  EXPECT_GT(touching, 100) << "the set should hold many touching queries";
+  for (size_t i = 0; i + 1 < handMade; ++i) EXPECT_TRUE(ask(queries[i], kThreshold).hit) << "hand-made query " << i;
+  std::cout << "[ self-collision queries ] " << queries.size() << " queries, " << touching << " touching, " << hits
+            << " reported, " << misses << " missed, " << falsePositives
+            << " false positives (reported, minimum distance above the threshold), " << capped << " capped\n";
+  RecordProperty("false_positives", falsePositives);
+}
+
+TEST(SelfCollisionQuery, NoHitProvesHalfTheThreshold) {
+  // Separated pairs approaching to just above the threshold: no hit is allowed only when
+  // the distance stays above half of it, which the sampled minimum checks.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> real(-1, 1);
+  int checked = 0;
+  for (int k = 0; k < 1000; ++k) {
+    Query q;
+    q.vertexTriangle = k % 2 == 0;
+    for (auto& vertex : q.x)
+      for (V& p : vertex) p = V(real(rng), real(rng), real(rng));
+    const double threshold = 0.05;
+    const PrimitiveContact c = ask(q, threshold);
+    if (c.hit) continue;
+    ++checked;
+    EXPECT_GE(trueMinimum(q), L(0.5 * threshold) * (1 - 1e-9L)) << "query " << k;
+  }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(SelfCollisionOptions, BadValuesAreRefusedByField) {
+  const auto refuses = [](SelfCollisionOptions o, const std::string& field) {
+    try {
+      validateSelfCollision(o);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("self_collision." + field), std::string::npos) << e.what();
+    }
+  };
+  SelfCollisionOptions o;
+  o.thickness = 0;
+  refuses(o, "thickness");
+  o.thickness = std::nan("");
+  refuses(o, "thickness");
+  o = {};
+  o.friction = -0.1;
+  refuses(o, "friction");
+  o = {};
+  o.iterations = 0;
+  refuses(o, "iterations");
+  o.iterations = 65;
+  refuses(o, "iterations");
+  EXPECT_NO_THROW(validateSelfCollision(SelfCollisionOptions{}));
+}
+
+TEST(SelfCollisionScene, BadSectionIsRefusedWithItsPath) {
+  const auto message = [](const std::string& section) {
+    try {
+      (void)parseScene(R"({"bodies":[{"type":"cloth_grid","width":4,"height":4}],"dt":0.001,"steps":1,)" + section +
+                       "}");
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message(R"("self_collision":{"thickness":-1})").find("self_collision.thickness"), std::string::npos)
+      << message(R"("self_collision":{"thickness":-1})");
+  EXPECT_NE(message(R"("self_collision":{"iterations":0})").find("self_collision.iterations"), std::string::npos);
+  EXPECT_NE(message(R"("self_collision":{"thikness":0.01})").find("thikness"), std::string::npos);
+  EXPECT_NE(message(R"("self_collision":{"friction":"high"})").find("self_collision.friction"), std::string::npos);
+  const SceneSpec ok = parseScene(
+      R"({"bodies":[{"type":"cloth_grid","width":4,"height":4}],"dt":0.001,"steps":1,"self_collision":{"thickness":0.003}})");
+  EXPECT_TRUE(ok.simulation.selfCollision.enabled);
+  EXPECT_EQ(ok.simulation.selfCollision.thickness, 0.003);
+}
+
+TEST(SurfaceTopology, EveryEdgeAndVertexIsOwnedOnce) {
+  const ModelAndState<double> flag = makeFlag<double>(5);
+  const Model<double>& m = flag.model;
+  const SurfaceTopology& topo = m.surfaceTopology();
+  const Index t = m.triangleCount();
+  // A 5 x 5 grid: 4 x 5 x 2 sides along rows and columns, 16 diagonals.
+  EXPECT_EQ(topo.edges.size(), 56u);
+  std::vector<int> edgeSeen(topo.edges.size(), 0), vertexSeen(static_cast<size_t>(m.particleCount()), 0);
+  for (Index k = 0; k < t; ++k) {
+    for (Index e = topo.ownedEdges.begin(k); e < topo.ownedEdges.end(k); ++e) ++edgeSeen[topo.ownedEdges.entries[e]];
+    for (Index v = topo.ownedVertices.begin(k); v < topo.ownedVertices.end(k); ++v)
+      ++vertexSeen[topo.ownedVertices.entries[v]];
+  }
+  for (int s : edgeSeen) EXPECT_EQ(s, 1);
+  for (int s : vertexSeen) EXPECT_EQ(s, 1);
+  const int before = m.derivedBuildCount();
+  (void)m.surfaceTopology();
+  EXPECT_EQ(m.derivedBuildCount(), before) << "computed once";
+}
+
+/// A built-in scene, small, with self-collision on or off.
+template <class S>
+Simulation<S> makeScene(const std::string& name, Index size, bool self, int threads = 2) {
+  SceneSpec spec = builtinSceneSpec(name, size);
+  spec.simulation.selfCollision.enabled = self;
+  AssembledScene<S> a = assembleScene<S>(spec);
+  a.options.threads = threads;
+  return Simulation<S>(std::move(a.built), a.options);
+}
+
+struct HardScene {
+  const char* name;
+  Index size;
+  double seconds;  // how long the test runs it
+};
+
+// Small versions, long enough to fold, stack, wring or wrap.
+const HardScene kHardScenes[] = {
+    {"fold", 12, 1.2}, {"two-cloths", 10, 1.2}, {"twist", 10, 2.0}, {"flag-pole", 12, 2.0}};
+
+template <class S>
+void expectNeverIntersects(const HardScene& scene) {
+  Simulation<S> sim = makeScene<S>(scene.name, scene.size, true);
+  ASSERT_EQ(sim.selfIntersections(), 0) << "the scene starts intersecting";
+  const Index steps = static_cast<Index>(std::ceil(scene.seconds / sim.timeStep()));
+  std::int64_t worst = 0;
+  for (Index k = 0; k < steps; ++k) {
+    const StepStatus status = sim.step();
+    ASSERT_TRUE(status.ok()) << scene.name << " step " << k << ": " << status.message();
+    const std::int64_t pairs = sim.selfIntersections();
+    if (pairs > 0 && worst == 0) ADD_FAILURE() << scene.name << ": " << pairs << " intersecting pairs after step " << k;
+    worst = std::max(worst, pairs);
+  }
+  EXPECT_EQ(worst, 0);
+  EXPECT_GT(sim.totalSelfCollision().contacts, 0) << scene.name << " never brought the cloth into contact with itself";
+  EXPECT_EQ(sim.totalSelfCollision().unresolved, 0);
+}
+
+TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInDouble) {
+  for (const HardScene& s : kHardScenes) expectNeverIntersects<double>(s);
+}
+
+TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInFloat) {
+  for (const HardScene& s : kHardScenes) expectNeverIntersects<float>(s);
+}
+
+TEST(SelfCollisionScenes, WithoutSelfCollisionTheClothIntersects) {
+  // The same scenes with the pass off: the check finds intersections, so the scenes are hard.
+  int intersecting = 0;
+  for (const HardScene& scene : kHardScenes) {
+    Simulation<double> sim = makeScene<double>(scene.name, scene.size, false);
+    const Index steps = static_cast<Index>(std::ceil(scene.seconds / sim.timeStep()));
+    std::int64_t worst = 0;
+    for (Index k = 0; k < steps && sim.step().ok(); ++k)
+      if (k % 10 == 0) worst = std::max(worst, sim.selfIntersections());
+    std::cout << "[ without self-collision ] " << scene.name << ": up to " << worst << " intersecting pairs\n";
+    intersecting += worst > 0 ? 1 : 0;
+  }
+  EXPECT_GE(intersecting, 3);
+}
+
+TEST(SelfCollisionScenes, OneAndTwoThreadsGiveTheSameBits) {
+  for (const HardScene& scene : {kHardScenes[0], kHardScenes[1]}) {
+    const char* name = scene.name;
+    Simulation<double> one = makeScene<double>(name, scene.size, true, 1);
+    Simulation<double> two = makeScene<double>(name, scene.size, true, 2);
+    const Index steps = static_cast<Index>(std::ceil(scene.seconds / one.timeStep()));
+    ASSERT_TRUE(one.run(steps).ok());
+    ASSERT_TRUE(two.run(steps).ok());
+    EXPECT_GT(one.totalSelfCollision().contacts, 0) << name;
+    EXPECT_EQ(stateHash(one.state()), stateHash(two.state())) << name;
+    EXPECT_EQ(one.totalSelfCollision().contacts, two.totalSelfCollision().contacts) << name;
+  }
+}
+
+TEST(SelfCollisionScenes, OffCostsNothing) {
+  // Without the option there is no pass: no collider, no statistics, the flag's step untouched.
+  Simulation<double> sim = makeScene<double>("flag", 8, false);
+  EXPECT_EQ(sim.selfCollider(), nullptr);
+  ASSERT_TRUE(sim.run(10).ok());
+  EXPECT_EQ(sim.totalSelfCollision().passes, 0);
+}
+
+TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
+  // A smaller cloth dropped 1 cm onto a larger one lying on a floor, shifted by half a
+  // spacing so no vertex is above another: after settling the particles are slow and the
+  // upper cloth stays where it is. (Where an upper cloth overhangs the lower one's border
+  // and drapes over it, particles near that border keep moving at a few cm/s: see
+  // docs/collision.md.)
+  ModelBuilder<double> b;
+  ClothGridSpec spec = flagSpec(12);
+  spec.origin = {0, 0.01, 0};
+  addClothGrid(b, spec);
+  const Index lower = b.particleCount();
+  spec.width = spec.height = 8;
+  spec.totalMass *= 64.0 / 144.0;
+  spec.origin = {2.5 * spec.spacing, 0.02, 1.5 * spec.spacing};
+  addClothGrid(b, spec);
+  SimulationOptions o;
+  o.dt = defaultTimeStep(BuiltinScene::Flag, 12);
+  o.effects.drag = 1e-3;
+  o.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+  o.selfCollision.enabled = true;
+  Simulation<double> sim(b.build(), o);
+  const Index n = sim.model().particleCount();
+  ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(1.0 / o.dt))).ok());
+  const auto upperCentre = [&] {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (Index i = lower; i < n; ++i) c += sim.state().x.row(i).transpose();
+    return Eigen::Vector3d(c / static_cast<double>(n - lower));
+  };
+  const Eigen::Vector3d before = upperCentre();
+  double fastest = 0;
+  for (Index k = 0; k < static_cast<Index>(std::ceil(0.5 / o.dt)); ++k) {
+    ASSERT_TRUE(sim.step().ok());
+    for (Index i = 0; i < n; ++i) fastest = std::max(fastest, sim.state().v.row(i).norm());
+  }
+  EXPECT_GT(sim.lastSelfCollision().contacts, 0) << "the layers should touch";
+  EXPECT_LT(fastest, 0.01) << "m/s over the last 0.5 s";
+  EXPECT_LT((upperCentre() - before).norm(), 1e-4) << "m of creep in 0.5 s";
+  EXPECT_EQ(sim.selfIntersections(), 0);
+  // The layers lie a thickness apart: the upper cloth rests on the lower one, not in it.
+  double lowest = 1;
+  for (Index i = lower; i < n; ++i) lowest = std::min(lowest, sim.state().x(i, 1));
+  EXPECT_GT(lowest, o.collision.thickness + 0.5 * o.selfCollision.thickness) << "m: the upper cloth's lowest particle";
+}
+
+}  // namespace
