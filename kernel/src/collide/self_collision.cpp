@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bvh_internal.hpp"
 #include "closest_point.hpp"
 
 namespace weft {
@@ -16,11 +17,7 @@ namespace {
 
 using V = Vec3<double>;
 
-std::string text(double value) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", value);
-  return buf;
-}
+using bvh_detail::text;
 
 /// Closest point of the closed triangle abc to p as barycentric weights (Ericson 5.1.5);
 /// slivers (sin^2 of the angle at a below eps) as their three edges.
@@ -414,7 +411,6 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
           c.weights[i] = hit.weights[i];
         }
         for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
-        c.count = 4;
         c.vertexTriangle = cand.vertexTriangle;
         c.guard = false;
         if (guard) {
@@ -511,7 +507,7 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
         if (!c.guard) continue;
         ++hits;
         bool any = false;
-        for (int i = 0; i < c.count; ++i) {
+        for (int i = 0; i < 4; ++i) {
           const Index j = c.vertex[i];
           if (w[j] == S(0) || frozen_[static_cast<size_t>(j)]) continue;
           frozen_[static_cast<size_t>(j)] = 1;
@@ -545,15 +541,18 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
 }
 
 template <class S>
-std::int64_t SelfCollider<S>::intersectingPairs(const Vec3Array<S>& x, const Executor& exec) const {
-  if (model_->triangleCount() < 2) return 0;
+std::int64_t countSelfIntersections(const Model<S>& model, const Vec3Array<S>& x, const Executor& exec) {
+  if (model.triangleCount() < 2) return 0;
   TriangleBvh<S> bvh;
-  bvh.build(x, model_->triangles(), exec, 0);
+  bvh.build(x, model.triangles(), exec, 0);
   std::vector<TrianglePair> pairs;
   BvhPairScratch scratch;
   bvh.selfIntersectingPairs(x, pairs, scratch, exec);
   return static_cast<std::int64_t>(pairs.size());
 }
+
+template std::int64_t countSelfIntersections(const Model<float>&, const Vec3Array<float>&, const Executor&);
+template std::int64_t countSelfIntersections(const Model<double>&, const Vec3Array<double>&, const Executor&);
 
 template class SelfCollider<float>;
 template class SelfCollider<double>;

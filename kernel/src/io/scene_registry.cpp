@@ -53,6 +53,15 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     body.grid = grid;
     scene.simulation.dt = defaultTimeStep(BuiltinScene::Flag, n);
   };
+  // The gusty wind of flag-wind and flag-pole: along +x, gusts of 2 m/s.
+  const auto gustyWind = [&] {
+    WindEffect& w = scene.simulation.effects.wind;
+    w.enabled = true;
+    w.velocity = {6, 0, 1};
+    w.gustStrength = 2;
+    w.gustScale = 1.5;
+    w.gustPeriod = 0.8;
+  };
   const auto rope = [&](Index n) {
     body.kind = BodyKind::Rope;
     body.name = "rope";
@@ -77,12 +86,7 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
       PinSpec pole;
       for (Index r = 0; r < n; ++r) pole.particles.push_back(r * n);
       body.pins.push_back(pole);
-      WindEffect& w = scene.simulation.effects.wind;
-      w.enabled = true;
-      w.velocity = {6, 0, 1};
-      w.gustStrength = 2;
-      w.gustScale = 1.5;
-      w.gustPeriod = 0.8;
+      gustyWind();
       scene.simulation.effects.drag = 1e-4;
     } else {
       // Hanging from a bar along its top edge (row 0), in the x-y plane; the bar turns
@@ -220,12 +224,7 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
       turn.endTime = 2.5;
       pole.path = turn;
       body.pins.push_back(pole);
-      WindEffect& w = scene.simulation.effects.wind;
-      w.enabled = true;
-      w.velocity = {6, 0, 1};
-      w.gustStrength = 2;
-      w.gustScale = 1.5;
-      w.gustPeriod = 0.8;
+      gustyWind();
       scene.simulation.collision.obstacles.push_back(Obstacle::capsule({-0.03, -0.2, 0}, {-0.03, 1.2, 0}, 0.025));
       scene.steps = static_cast<std::int64_t>(std::ceil(4.0 / scene.simulation.dt));
     }

@@ -135,8 +135,7 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
 
 template <class S>
 std::int64_t Simulation<S>::selfIntersections() const {
-  if (self_) return self_->intersectingPairs(state_.x, *executor_);
-  return SelfCollider<S>(*model_, options_.selfCollision, state_.x, *executor_).intersectingPairs(state_.x, *executor_);
+  return countSelfIntersections(*model_, state_.x, *executor_);
 }
 
 template <class S>

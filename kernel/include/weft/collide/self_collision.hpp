@@ -65,7 +65,7 @@
 // block writing its own lists; the lists are concatenated in block order and the response runs serially
 // over them, so the result is bitwise the same for any thread count. Buffers are kept, so
 // once warmed up a step allocates nothing. Distances are computed in double for either
-// precision. The exact check (intersectingPairs) is separate: the exact triangle-triangle
+// precision. The exact check (countSelfIntersections) is separate: the exact triangle-triangle
 // test of geometry.hpp on every pair of triangles sharing no particle, through the BVH.
 #pragma once
 
@@ -124,6 +124,13 @@ PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<doubl
 PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
                                  const Vec3<double> b[2], double threshold, double start = 0);
 
+/// Pairs of the model's triangles sharing no particle that intersect at x: the exact test of
+/// geometry.hpp through a BVH built for the call (for reports and tests, not for the step).
+template <class S>
+std::int64_t countSelfIntersections(const Model<S>& model, const Vec3Array<S>& x, const Executor& exec);
+extern template std::int64_t countSelfIntersections(const Model<float>&, const Vec3Array<float>&, const Executor&);
+extern template std::int64_t countSelfIntersections(const Model<double>&, const Vec3Array<double>&, const Executor&);
+
 /// The self-collision pass of one Model (see the design note). Sized at construction.
 template <class S>
 class SelfCollider {
@@ -134,10 +141,6 @@ class SelfCollider {
   /// Resolves the chunk x0 -> x1 (length h, s) in place: x1 and v1 change.
   SelfCollisionStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
                              double h, const Executor& exec);
-
-  /// Pairs of triangles sharing no particle that intersect at x (exact; allocates a BVH:
-  /// for reports and tests, not for the step).
-  std::int64_t intersectingPairs(const Vec3Array<S>& x, const Executor& exec) const;
 
   const SelfCollisionOptions& options() const { return options_; }
 
@@ -151,7 +154,6 @@ class SelfCollider {
   };
   struct Contact {
     Index vertex[4];  // as the candidate's
-    int count;
     bool vertexTriangle;
     bool guard;  // also below the failsafe's threshold
     double weights[4];
