@@ -652,7 +652,8 @@ TEST(MeshFile, PlyHeaderWithoutEndHeaderIsRefused) {
   const auto named = [](const std::string& path) {
     return AllOf(HasSubstr("mesh file '" + path + "': "), HasSubstr("PLY header has no end_header line"));
   };
-  for (const char* name : {"ply-header-without-end-hangs.ply", "ply-header-without-end-hangs-fuzzed.ply"}) {
+  for (const char* name : {"ply-header-without-end-hangs.ply", "ply-header-without-end-hangs-fuzzed.ply",
+                           "ply-first-line-ply-then-garbage-hangs.ply"}) {
     const std::string contents = fuzzRegression(name);
     EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory(contents, "fuzzed.ply"); }),
                 named("fuzzed.ply"))
@@ -669,6 +670,9 @@ TEST(MeshFile, PlyHeaderWithoutEndHeaderIsRefused) {
   std::string crlf;
   for (const char c : triangle) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
   EXPECT_EQ(loadMeshFromMemory(crlf, "crlf.ply").triangles.size(), 1u);
+  // assimp takes a file for PLY when its first three bytes are "ply" in any case.
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory("pLyX\nformat ascii 1.0\n", "mixed.ply"); }),
+              named("mixed.ply"));
   // Not PLY (no "ply" first line): not this check's business, whatever the name says.
   EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory("solid x\n", "x.ply"); }),
               Not(HasSubstr("end_header")));

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "../core/text.hpp"
 #include "weft/collide/bvh.hpp"
 
 namespace weft::bvh_detail {
@@ -168,11 +169,6 @@ inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_
 }
 
 /// A number in an error message, all its digits.
-inline std::string text(double value) {
-  std::ostringstream out;
-  out.precision(17);
-  out << value;
-  return out.str();
-}
+inline std::string text(double value) { return detail::number(value); }
 
 }  // namespace weft::bvh_detail

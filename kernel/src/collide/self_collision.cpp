@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -162,6 +163,40 @@ void validateSelfCollision(const SelfCollisionOptions& o, const char* where) {
     throw std::invalid_argument(w + ".iterations must be in [1, 64], got " + std::to_string(o.iterations));
 }
 
+template <class S>
+void validateSelfCollision(const SelfCollisionOptions& o, const Model<S>& model, const Vec3Array<S>& x,
+                           const char* where) {
+  validateSelfCollision(o, where);
+  const Triangles& tr = model.triangles();
+  double smallest = std::numeric_limits<double>::infinity();
+  Index which = -1;
+  for (Index t = 0; t < model.triangleCount(); ++t) {
+    const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
+    V p[3];
+    for (int k = 0; k < 3; ++k)
+      p[k] = V(static_cast<double>(x(c[k], 0)), static_cast<double>(x(c[k], 1)), static_cast<double>(x(c[k], 2)));
+    const double longest =
+        std::sqrt(std::max({(p[1] - p[0]).squaredNorm(), (p[2] - p[1]).squaredNorm(), (p[0] - p[2]).squaredNorm()}));
+    const double altitude = longest > 0 ? (p[1] - p[0]).cross(p[2] - p[0]).norm() / longest : 0.0;
+    if (!(altitude >= smallest)) {  // (a NaN altitude is the smallest: the check refuses it)
+      smallest = altitude;
+      which = t;
+    }
+  }
+  if (which >= 0 && !(o.thickness < smallest))
+    throw std::invalid_argument(
+        std::string(where) + ".thickness = " + text(o.thickness) +
+        " m must be below the smallest altitude of the cloth's triangles in the initial state, " + text(smallest) +
+        " m (triangle " + std::to_string(which) + ", particles " + std::to_string(tr.a[which]) + ", " +
+        std::to_string(tr.b[which]) + ", " + std::to_string(tr.c[which]) +
+        "): a thicker layer puts neighbouring triangles in contact at rest; keep it below about half of that");
+}
+
+template void validateSelfCollision(const SelfCollisionOptions&, const Model<float>&, const Vec3Array<float>&,
+                                    const char*);
+template void validateSelfCollision(const SelfCollisionOptions&, const Model<double>&, const Vec3Array<double>&,
+                                    const char*);
+
 PrimitiveContact vertexTriangleContact(const V p[2], const V a[2], const V b[2], const V c[2], double threshold,
                                        double start) {
   const auto eval = [&](double s, V& gap, double* weights) {
@@ -229,7 +264,7 @@ template <class S>
 SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions& options, const Vec3Array<S>& x,
                               const Executor& exec)
     : model_(&model), options_(options) {
-  validateSelfCollision(options_, "SelfCollisionOptions");
+  validateSelfCollision(options_, model, x, "SelfCollisionOptions");
   skin_ = kSkin * options_.thickness;
   if (model.triangleCount() > 0) {
     (void)model.surfaceTopology();  // derived once per Model

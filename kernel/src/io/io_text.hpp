@@ -7,19 +7,13 @@
 #include <cstdlib>
 #include <string>
 
+#include "../core/text.hpp"
 #include "weft/core/types.hpp"
 
 namespace weft::io_detail {
 
 /// The shortest decimal that reads back as v: "0.1", "1e-09", "200".
-inline std::string fmt(double v) {
-  char buffer[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(buffer, sizeof buffer, "%.*g", precision, v);
-    if (std::strtod(buffer, nullptr) == v) break;
-  }
-  return buffer;
-}
+inline std::string fmt(double v) { return detail::number(v); }
 
 inline std::string fmt(const Vec3d& v) {
   std::string s = "[";  // (appended, not "[" + ...: GCC 12 warns about that falsely, -Wrestrict)

@@ -55,10 +55,20 @@ bool startsWithToken(std::string_view line, std::string_view token) {
   return end == line.size() || line[end] == ' ' || line[end] == '\t';
 }
 
-/// Refuses a PLY file (its first line "ply" or "PLY", which assimp's PLY reader requires)
-/// whose header has no "end_header" line: assimp 5.2's PLY reader never returns on such a
-/// header (an 89-byte file of a header's first six lines ran for as long as it was let;
-/// found by tests/fuzz/fuzz_mesh.cpp).
+/// Whether `line` starts, after spaces and tabs, with "ply" in any case followed by
+/// anything: all assimp's PLY reader asks of a file's first bytes ("ply\xfd" is PLY to it).
+bool startsLikePly(std::string_view line) {
+  const size_t start = line.find_first_not_of(" \t");
+  if (start == std::string_view::npos || line.size() - start < 3) return false;
+  const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; };
+  return lower(line[start]) == 'p' && lower(line[start + 1]) == 'l' && lower(line[start + 2]) == 'y';
+}
+
+/// Refuses a PLY file (its first line starting with "ply" in any case, which is what
+/// assimp's PLY reader requires) whose header has no "end_header" line: assimp 5.2's PLY
+/// reader never returns on such a header (an 89-byte file of a header's first six lines ran
+/// for as long as it was let; then "ply\xfd" as a first line; both found by
+/// tests/fuzz/fuzz_mesh.cpp).
 /// `nextLine(line)` yields the file's lines, split at '\n', and returns false at the end;
 /// '\r' and NUL also end a line for assimp, so they split a line here too.
 template <class NextLine>
@@ -70,7 +80,7 @@ void checkPlyHeader(const std::string& path, NextLine nextLine) {
       const size_t end = text.find_first_of(std::string_view("\r\0", 2));
       const std::string_view line = text.substr(0, end);
       if (first) {
-        if (!startsWithToken(line, "ply") && !startsWithToken(line, "PLY")) return;  // not PLY: assimp decides
+        if (!startsLikePly(line)) return;  // not PLY: assimp decides
         first = false;
       } else if (startsWithToken(line, "end_header")) {
         return;

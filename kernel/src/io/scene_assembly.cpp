@@ -139,6 +139,8 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
   try {
     validateCollision(out.options.collision, "collision");
     validateRigidOptions(out.options.rigid);
+    if (out.options.selfCollision.enabled)
+      validateSelfCollision(out.options.selfCollision, out.built.model, out.built.state.x, "self_collision");
   } catch (const std::exception& e) {
     throw SceneError(scene.name + ": " + e.what());
   }

@@ -9,18 +9,15 @@
 #include <string>
 #include <vector>
 
+#include "../core/text.hpp"
+
 namespace weft {
 
 namespace {
 
 constexpr const char* kWhere = "addClothMesh";
 
-std::string number(double value) {
-  std::ostringstream text;
-  text.precision(17);
-  text << value;
-  return text.str();
-}
+using detail::number;
 
 [[noreturn]] void reject(const std::string& field, double value, const std::string& rule) {
   throw std::invalid_argument(std::string(kWhere) + ": " + field + " must be " + rule + ", got " + number(value));

@@ -8,18 +8,15 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "../core/text.hpp"
+
 namespace weft {
 
 namespace {
 
 constexpr const char* kWhere = "cleanMesh";
 
-std::string number(double value) {
-  std::ostringstream text;
-  text.precision(17);
-  text << value;
-  return text.str();
-}
+using detail::number;
 
 /// "1 vertex" / "3 vertices".
 std::string counted(Index n, const char* one, const char* many) {

@@ -5,14 +5,12 @@
 #include <charconv>
 #include <string>
 
+#include "../core/text.hpp"
+
 namespace weft::rigid_detail {
 
 /// Shortest round-trip text of v ("-1", "0.1", "nan").
-inline std::string formatNumber(double v) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
-  return std::string(buffer, result.ptr);
-}
+inline std::string formatNumber(double v) { return detail::number(v); }
 
 /// "(x, y, z)".
 inline std::string formatVector(const Eigen::Vector3d& v) {

@@ -94,8 +94,10 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
                                                    options_.collisionModel);
   }
-  if (options_.selfCollision.enabled)
+  if (options_.selfCollision.enabled) {
+    validateSelfCollision(options_.selfCollision, *model_, state_.x, "SimulationOptions.selfCollision");
     self_ = std::make_unique<SelfCollider<S>>(*model_, options_.selfCollision, state_.x, *executor_);
+  }
   if (!options_.rigid.bodies.empty()) {
     const Vec3d& g = options_.gravity;
     rigid_ = std::make_unique<RigidWorld>(options_.rigid, Eigen::Vector3d(g.x, g.y, g.z));

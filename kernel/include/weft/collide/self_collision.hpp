@@ -90,6 +90,15 @@ struct SelfCollisionOptions {
 
 /// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.
 void validateSelfCollision(const SelfCollisionOptions& options, const char* where = "self_collision");
+/// The same, and the thickness against the model's triangles in positions x: it must be
+/// below their smallest altitude (2 x area / longest edge). A vertex is never farther than
+/// that from the triangle across its opposite longest edge, a triangle it is not part of, so
+/// a thicker layer would put neighbouring triangles in contact with each other at rest (and
+/// make every neighbour a contact: the pass's work would grow with the square of the
+/// triangles within the thickness). Throws std::invalid_argument naming the triangle.
+template <class S>
+void validateSelfCollision(const SelfCollisionOptions& options, const Model<S>& model, const Vec3Array<S>& x,
+                           const char* where);
 
 /// Self-collision work and findings, per step and summed.
 struct SelfCollisionStats {
