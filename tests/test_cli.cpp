@@ -1,8 +1,12 @@
 // tests/test_cli.cpp — the `weft` command line, run as a separate process (support/cli_runner.hpp).
 // WEFT_CLI_PATH is the binary's path, given by CMake ($<TARGET_FILE:weft_cli>).
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cctype>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -259,6 +263,82 @@ TEST(Cli, FramesOutWritesOneObjPerFrame) {
   }
   EXPECT_EQ(vertices, 64);
   EXPECT_EQ(faces, 2 * 7 * 7);
+}
+
+// Ctrl-C during a run: the step in progress finishes, the frames so far and a checkpoint
+// are written whole (no .tmp left), the summary says "interrupted" and the exit code is 130;
+// `--resume` then reaches the bits of the run that never stopped, and numbers its frames on.
+TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
+  const std::filesystem::path dir = ::testing::TempDir() + "weft_cli_interrupt";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string checkpoint = (dir / "run.wckpt").string(), frames = (dir / "frames").string(),
+                    summary = (dir / "summary.json").string();
+  const std::string scene = "run drape --size 24";
+  std::fflush(stdout);  // (the child must not write this process's buffered output again)
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    if (std::freopen(summary.c_str(), "w", stdout) == nullptr) _exit(126);
+    execl(WEFT_CLI_PATH, "weft", "run", "drape", "--size", "24", "--steps", "100000000", "--checkpoint",
+          checkpoint.c_str(), "--every", "40", "--out", frames.c_str(), "--json", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // The first checkpoint says the run is stepping (with the handler in place).
+  for (int k = 0; k < 12000 && !std::filesystem::exists(checkpoint); ++k) usleep(10000);
+  ASSERT_TRUE(std::filesystem::exists(checkpoint)) << "no checkpoint after 120 s";
+  kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by a signal: " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  std::ifstream in(summary);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["status"], "interrupted");
+  EXPECT_NE(j["status_message"].get<std::string>().find("stopped by SIGINT"), std::string::npos);
+  const std::int64_t stopped = j["steps"].get<std::int64_t>();
+  EXPECT_GT(stopped, 0);
+  EXPECT_LT(stopped, 100000000);
+  EXPECT_EQ(j["frames_written"].get<std::int64_t>(), stopped / 40 + 1);
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir))
+    EXPECT_NE(entry.path().extension(), ".tmp") << entry.path() << " was left half-written";
+
+  // Resumed from the step it stopped at, to 100 steps further: as the run that never stopped.
+  const std::string more = " --steps " + std::to_string(stopped + 100);
+  const nlohmann::json resumed = runJson(scene + more + " --resume " + checkpoint + " --out " + frames + " --every 40");
+  const nlohmann::json straight = runJson(scene + more);
+  EXPECT_EQ(resumed["steps"], stopped + 100);
+  EXPECT_EQ(resumed["state_hash"], straight["state_hash"]);
+  EXPECT_EQ(resumed["force_evaluations"], straight["force_evaluations"]);
+  EXPECT_EQ(resumed["frames_written"].get<std::int64_t>(), (stopped + 100) / 40 + 1);
+  std::int64_t files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(frames)) ++files;
+  EXPECT_EQ(files, (stopped + 100) / 40 + 1);
+  // A checkpoint of another scene is refused, naming the file.
+  const CliRun other = weft("run flag --size 24 --steps 10 --resume " + checkpoint, true);
+  EXPECT_EQ(other.exitCode, 2);
+  EXPECT_NE(other.out.find("checkpoint '" + checkpoint + "': written for another model"), std::string::npos)
+      << other.out;
+  std::filesystem::remove_all(dir);
+}
+
+// `weft soak`, short: each scene on 1 and 2 threads, one row with the checks.
+TEST(Cli, SoakRunsEachSceneOnBothThreadCountsAndChecksIt) {
+  const CliRun r = weft("soak --seconds 0.05 --scene drape --scene stack --scene twist", true);
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  for (const char* row : {"| drape | double | 250 | 0.05 |", "| stack | double | 3 |", "| twist | double |"})
+    EXPECT_NE(r.out.find(row), std::string::npos) << row << " in\n" << r.out;
+  std::istringstream lines(r.out);
+  int rows = 0;
+  for (std::string line; std::getline(lines, line);)
+    if (line.rfind("| drape", 0) == 0 || line.rfind("| stack", 0) == 0 || line.rfind("| twist", 0) == 0) {
+      ++rows;
+      EXPECT_NE(line.find("(all equal)"), std::string::npos) << line;
+      EXPECT_NE(line.find("| pass |"), std::string::npos) << line;
+    }
+  EXPECT_EQ(rows, 3);
+  EXPECT_EQ(weft("soak --seconds 0", true).exitCode, 2);
+  EXPECT_EQ(weft("soak --scene no-such-scene", true).exitCode, 2);
 }
 
 TEST(Cli, FramesOutCacheHoldsEveryKthStateOfTheLibraryRun) {

@@ -38,6 +38,7 @@
 #include "weft/io/mesh_import.hpp"
 #include "weft/model/cloth_mesh.hpp"
 #include "weft/model/triangle_mesh.hpp"
+#include "weft/scene/simulation.hpp"
 
 namespace weft::test {
 namespace {
@@ -694,6 +695,119 @@ TEST(MeshFile, UnreadableFileIsReported) {
   EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMesh(path); }),
               AllOf(HasSubstr("mesh file '" + path + "'"), HasSubstr("cannot open: Permission denied")));
   chmod(path.c_str(), 0644);
+}
+
+// Adversarial meshes: very large, coordinates beyond what the precision can square, only
+// degenerate triangles, one vertex shared by ten thousand triangles. Each is either built
+// or refused with a message naming the field and the value, never a crash or NaN later.
+
+/// A binary STL of a w x h grid of 1 mm squares (2 w h triangles).
+std::string binaryStlGrid(int w, int h) {
+  std::string out(80, ' ');
+  const std::uint32_t count = static_cast<std::uint32_t>(2 * w * h);
+  out.append(reinterpret_cast<const char*>(&count), 4);
+  const auto triangle = [&](float ax, float ay, float bx, float by, float cx, float cy) {
+    const float values[12] = {0, 0, 1, ax, ay, 0, bx, by, 0, cx, cy, 0};
+    out.append(reinterpret_cast<const char*>(values), sizeof values);
+    out.append(2, '\0');
+  };
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const float x = 0.001f * static_cast<float>(c), y = 0.001f * static_cast<float>(r), d = 0.001f;
+      triangle(x, y, x + d, y, x + d, y + d);
+      triangle(x, y, x + d, y + d, x, y + d);
+    }
+  return out;
+}
+
+TEST(AdversarialMesh, AMillionTrianglesAreReadCleanedAndBuilt) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  const int w = 250, h = 200;  // 100 k triangles: the sanitizers are 10-20x slower
+#else
+  const int w = 1000, h = 500;  // a million triangles, a 50 MB file
+#endif
+  const std::string path = tempFile("million.stl", binaryStlGrid(w, h));
+  MeshReport report;
+  const TriangleMesh mesh = loadCleanMesh(path, {}, &report);
+  std::filesystem::remove(path);
+  EXPECT_EQ(report.outputTriangles, 2 * w * h);
+  EXPECT_EQ(report.outputVertices, (w + 1) * (h + 1)) << "corner copies welded";
+  EXPECT_EQ(report.boundaryEdges, 2 * (w + h));
+  ModelBuilder<float> builder;
+  const ClothMeshStats stats = addClothMesh(builder, mesh);
+  EXPECT_EQ(stats.particles, (w + 1) * (h + 1));
+  const ModelAndState<float> built = builder.build();
+  EXPECT_EQ(built.model.triangleCount(), 2 * w * h);
+}
+
+TEST(AdversarialMesh, CoordinatesTooLargeToSquareAreRefusedByPrecision) {
+  // 1e38 fits in a float, but its square does not: every spring length would overflow, so
+  // the float model refuses it (naming the particle and the bound); double takes it and steps.
+  const TriangleMesh mesh =
+      loadCleanMeshFromMemory("v 0 0 0\nv 1e38 0 0\nv 0 1e38 0\nv 1e38 1e38 0\nf 1 2 3\nf 2 4 3\n", "big.obj");
+  ModelBuilder<float> single;
+  addClothMesh(single, mesh);
+  EXPECT_THAT(thrownMessage<std::invalid_argument>([&] { (void)single.build(); }),
+              AllOf(HasSubstr("position.x of particle [1] must be within +-1e+18 m in float precision"),
+                    HasSubstr("got 9.99999968")));
+  ModelBuilder<double> twice;
+  addClothMesh(twice, mesh);
+  SimulationOptions o;
+  o.threads = 1;
+  Simulation<double> sim(twice.build(), o);
+  EXPECT_TRUE(sim.run(3).ok());
+  // A NaN or a coordinate beyond what the file format holds is refused at import.
+  EXPECT_THAT(thrownMessage<std::runtime_error>(
+                  [] { (void)loadCleanMeshFromMemory("v 0 0 0\nv 1e200 0 0\nv 0 1 0\nf 1 2 3\n", "huge.obj"); }),
+              AllOf(HasSubstr("mesh file 'huge.obj'"), HasSubstr("vertices[1].x must be finite")));
+  EXPECT_THAT(thrownMessage<std::runtime_error>(
+                  [] { (void)loadCleanMeshFromMemory("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "nan.obj"); }),
+              AllOf(HasSubstr("mesh file 'nan.obj'"), HasSubstr("vertices[1].x must be finite, got nan")));
+}
+
+TEST(AdversarialMesh, OnlyDegenerateTrianglesLeaveNothingToBuild) {
+  // A thousand triangles of zero area: collinear corners, repeated corners, coincident points.
+  std::string obj;
+  for (int k = 0; k < 500; ++k) obj += "v " + std::to_string(k) + " 0 0\n";
+  obj += "v 7 7 7\nv 7 7 7\nv 7 7 7\n";
+  for (int k = 1; k + 2 <= 500; k += 2)
+    obj += "f " + std::to_string(k) + " " + std::to_string(k + 1) + " " + std::to_string(k + 2) + "\n";
+  for (int k = 0; k < 500; ++k) obj += "f 501 502 503\n";
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { (void)loadCleanMeshFromMemory(obj, "flat.obj"); }),
+              AllOf(HasSubstr("mesh file 'flat.obj'"), HasSubstr("no triangles after cleaning")));
+}
+
+TEST(AdversarialMesh, OneVertexSharedByTenThousandTriangles) {
+  // A fan: the hub is in every triangle. It builds and steps; self-collision refuses its
+  // default thickness (the slivers' altitude, 0.6 mm, is below 4 mm) rather than making
+  // every pair of the fan a contact.
+  constexpr int kFan = 10000;
+  std::string obj = "v 0 0 0\n";
+  for (int k = 0; k < kFan; ++k) {
+    const double a = 2 * 3.14159265358979323846 * k / kFan;
+    obj += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+  }
+  for (int k = 0; k < kFan; ++k)
+    obj += "f 1 " + std::to_string(2 + k) + " " + std::to_string(2 + (k + 1) % kFan) + "\n";
+  MeshReport report;
+  const TriangleMesh mesh = loadCleanMeshFromMemory(obj, "fan.obj", {}, &report);
+  EXPECT_EQ(report.outputTriangles, kFan);
+  ModelBuilder<double> builder;
+  const ClothMeshStats stats = addClothMesh(builder, mesh);
+  EXPECT_EQ(stats.particles, kFan + 1);
+  EXPECT_EQ(stats.structuralSprings, 2 * kFan);
+  auto model = std::make_shared<const Model<double>>(builder.build().model);
+  ModelBuilder<double> again;
+  addClothMesh(again, mesh);
+  const State<double> initial = again.build().state;
+  SimulationOptions o;
+  o.threads = 2;
+  o.dt = 1e-5;
+  Simulation<double> sim(model, initial, o);
+  EXPECT_TRUE(sim.run(5).ok());
+  o.selfCollision.enabled = true;
+  EXPECT_THAT(thrownMessage<std::invalid_argument>([&] { Simulation<double>(model, initial, o); }),
+              AllOf(HasSubstr("SimulationOptions.selfCollision.thickness = 0.004"), HasSubstr("smallest altitude")));
 }
 
 }  // namespace

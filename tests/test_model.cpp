@@ -503,8 +503,16 @@ TYPED_TEST(ModelTest, ValuesOutsideThePrecisionAreRejected) {
         },
         "stiffness of spring [0]", "1e+300");
   } else {
+    // A double holds 1e300, but positions must keep the squares of their distances finite.
+    expectInvalid(
+        [] {
+          ModelBuilder<S> b;
+          b.addParticle({0, 1e300, 0}, 1);
+          b.build();
+        },
+        "position.y of particle [0] must be within +-1e+150 m in double precision", "1e+300");
     ModelBuilder<S> b;
-    b.addParticle({0, 1e300, 0}, 1);
+    b.addParticle({0, 1e150, 0}, 1);
     EXPECT_NO_THROW(b.build());
   }
 }

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes weft's file readers for a bounded time: libFuzzer with AddressSanitizer and
-# UndefinedBehaviorSanitizer on three targets, run one after the other, each for SECONDS
-# (so `bash tools/fuzz.sh 60`, as CI runs it, takes three minutes of fuzzing plus the build):
+# UndefinedBehaviorSanitizer on four targets, run one after the other, each for SECONDS
+# (so `bash tools/fuzz.sh 60`, as CI runs it, takes four minutes of fuzzing plus the build):
 #
 #   fuzz_scene        tests/fuzz/fuzz_scene.cpp: weft::parseScene on every input; small
 #                     accepted scenes are also assembled, built into a Simulation and stepped once.
@@ -12,6 +12,10 @@
 #   fuzz_frame_cache  tests/fuzz/fuzz_frame_cache.cpp: every input is written to a file and
 #                     opened with FrameCacheReader<float> and <double>; the frames of an accepted
 #                     cache are read back and compared with the input's bytes.
+#   fuzz_checkpoint   tests/fuzz/fuzz_checkpoint.cpp: Simulation::restore of every input into one of
+#                     four small simulations (first byte: which, and whether the checksum is
+#                     recomputed so mutations reach the sections); a refused checkpoint must leave
+#                     the simulation as it was, an accepted one must step.
 #
 # Each target exits non-zero on a finding (a crash, a sanitizer report, an exception the code
 # under test should have turned into its documented error — SceneError, or std::runtime_error
@@ -35,6 +39,8 @@
 #   fuzz_frame_cache  tests/fuzz/seeds/frame_cache/ (written by      build-fuzz/frame_cache/corpus/, .../findings/
 #                     tests/fuzz/make_frame_cache_seeds.cpp),
 #                     tests/fuzz/regressions/frame_cache/
+#   fuzz_checkpoint   written by make_checkpoint_seeds before       build-fuzz/checkpoint/corpus/, .../findings/
+#                     each run, tests/fuzz/regressions/checkpoint/
 #
 # tests/fuzz/regressions/ holds the inputs of past findings, fixed: keep each new one there
 # (scene inputs at its top level, the others in the folder named after the target: mesh/,
@@ -42,7 +48,8 @@
 # to free) are suppressed by tests/lsan.supp. fuzz_mesh is slow (about ten inputs a
 # second: assimp's OBJ reader fills a large buffer per file, costly under ASan).
 # Reproduce a finding: build-fuzz/tests/fuzz/fuzz_scene build-fuzz/findings/crash-...
-# (likewise fuzz_mesh build-fuzz/mesh/findings/..., fuzz_frame_cache build-fuzz/frame_cache/findings/...).
+# (likewise fuzz_mesh build-fuzz/mesh/findings/..., fuzz_frame_cache build-fuzz/frame_cache/findings/...,
+# fuzz_checkpoint build-fuzz/checkpoint/findings/...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
@@ -56,7 +63,7 @@ dir=build-fuzz
 bash tools/setup.sh
 cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_FUZZ=ON \
   -DWEFT_SANITIZE=address,undefined -DWEFT_BUILD_TESTS=OFF -DWEFT_BUILD_BENCH=OFF -DWEFT_BUILD_TOOLS=OFF >/dev/null
-cmake --build "$dir" -j"$jobs" --target fuzz_scene fuzz_mesh fuzz_frame_cache
+cmake --build "$dir" -j"$jobs" --target fuzz_scene fuzz_mesh fuzz_frame_cache fuzz_checkpoint make_checkpoint_seeds
 
 # Seeds under 64 KB only: libFuzzer sizes its inputs after the largest seed, and the
 # 500 KB pile.json (a thousand bodies of the same few shapes) adds no key the others lack.
@@ -65,14 +72,15 @@ mkdir -p "$dir/seeds" "$dir/findings" "$dir/corpus"
 find tools/scenes -maxdepth 1 -name '*.json' -size -64k -exec cp {} "$dir/seeds/" \;
 find tests/fuzz/regressions -maxdepth 1 -type f -exec cp {} "$dir/seeds/" \;
 
-for target in mesh frame_cache; do
+for target in mesh frame_cache checkpoint; do
   rm -rf "$dir/$target/seeds" "$dir/$target/findings"
   mkdir -p "$dir/$target/seeds" "$dir/$target/findings" "$dir/$target/corpus"
-  cp tests/fuzz/seeds/$target/* "$dir/$target/seeds/"
+  if [ -d tests/fuzz/seeds/$target ]; then cp tests/fuzz/seeds/$target/* "$dir/$target/seeds/"; fi
   if [ -d tests/fuzz/regressions/$target ]; then
     find tests/fuzz/regressions/$target -maxdepth 1 -type f -exec cp {} "$dir/$target/seeds/" \;
   fi
 done
+"$dir/tests/fuzz/make_checkpoint_seeds" "$dir/checkpoint/seeds"
 # fuzz_mesh reads the first byte as the format hint: '0' (48 % 4 = 0) is obj.
 for mesh in tools/scenes/meshes/*.obj; do
   if [ "$(stat -c %s "$mesh")" -lt 65536 ]; then
@@ -108,4 +116,5 @@ fuzz fuzz_scene "the scene reader" "$dir/findings" "$dir/corpus" "$dir/seeds" -d
 fuzz fuzz_mesh "mesh import" "$dir/mesh/findings" "$dir/mesh/corpus" "$dir/mesh/seeds"
 fuzz fuzz_frame_cache "the frame cache reader" "$dir/frame_cache/findings" "$dir/frame_cache/corpus" \
   "$dir/frame_cache/seeds"
+fuzz fuzz_checkpoint "checkpoints" "$dir/checkpoint/findings" "$dir/checkpoint/corpus" "$dir/checkpoint/seeds"
 exit "$failed"

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "run_command.hpp"
+#include "soak_command.hpp"
 #include "study_command.hpp"
 #include "weft/integrate/integrator.hpp"
 #include "weft/io/scene.hpp"
@@ -157,9 +158,23 @@ int main(int argc, char** argv) {
   cmd->add_option("--format", run.format, "Frame format: obj | ply | cache (one frames.wcache); default obj")
       ->check(CLI::IsMember({"obj", "ply", "cache"}))
       ->needs(out);
-  cmd->add_option("--every", run.every, "Write a frame every K steps (K >= 1, default 1); frame 0 is the initial state")
-      ->check(CLI::Range(std::int64_t(1), std::numeric_limits<std::int64_t>::max()))
-      ->needs(out);
+  CLI::Option* every =
+      cmd->add_option("--every", run.every,
+                      "Write a frame (--out) and a checkpoint (--checkpoint) every K steps (K >= 1, default 1 for "
+                      "frames; without it a checkpoint is written at the end only); frame 0 is the initial state")
+          ->check(CLI::Range(std::int64_t(1), std::numeric_limits<std::int64_t>::max()));
+  CLI::Option* checkpoint = cmd->add_option(
+      "--checkpoint", run.checkpoint,
+      "Write a checkpoint to FILE (through FILE.tmp, renamed) every --every steps, at the end and when interrupted "
+      "(Ctrl-C): `--resume FILE` continues the run bit for bit");
+  cmd->add_option("--resume", run.resume,
+                  "Continue from a checkpoint written by --checkpoint for the same scene and options, up to --steps "
+                  "in all");
+  every->check(
+      [out, checkpoint](const std::string&) -> std::string {
+        return out->count() + checkpoint->count() > 0 ? "" : "--every needs --out or --checkpoint";
+      },
+      "");
   cmd->add_flag("--json", run.json, "Print exactly one JSON object instead of the summary");
   cmd->add_flag("!--no-progress", run.progress, "No progress bar (there is none with --json or when not a terminal)");
 
@@ -176,6 +191,20 @@ int main(int argc, char** argv) {
   studyCmd->add_option("--scene", study.scenes, "Only these scenes: oscillator, rope, flag (default: all)")
       ->check(CLI::IsMember({"oscillator", "rope", "flag"}));
 
+  weftcli::SoakOptions soak;
+  CLI::App* soakCmd = app.add_subcommand(
+      "soak",
+      "Long runs of every built-in scene on 1 and 2 threads: no NaN, bounded energy, no memory growth, one hash");
+  soakCmd->add_option("--seconds", soak.seconds, "Simulated seconds per scene (default 60)")->check(finitePositive);
+  soakCmd->add_option("--max-steps", soak.maxSteps, "Steps per scene at most (default 1000000)")
+      ->check(CLI::Range(std::int64_t(1), std::numeric_limits<std::int64_t>::max()));
+  soakCmd->add_option("--scene", soak.scenes, "Only these built-in scenes (default: all)")
+      ->check(CLI::IsMember(weft::builtinSceneNames()));
+  soakCmd->add_option("--threads", soak.threads, "Thread counts whose final hashes must agree (default: 1 2)")
+      ->check(CLI::Range(1, 1024))
+      ->expected(1, 16);
+  soakCmd->add_option("--out", soak.out, "Also write the Markdown table to this file");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -186,6 +215,7 @@ int main(int argc, char** argv) {
   if (cmd->parsed() && !cmd->remaining().empty()) return reportExtras(*cmd, cmd->remaining());
   try {
     if (studyCmd->parsed()) return weftcli::runStudy(study);
+    if (soakCmd->parsed()) return weftcli::runSoak(soak);
     return weftcli::runScene(run);
   } catch (const std::exception& e) {
     std::cerr << "weft: " << e.what() << "\n";

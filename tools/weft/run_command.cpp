@@ -1,11 +1,13 @@
 #include "run_command.hpp"
 
+#include <signal.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -16,26 +18,13 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "process_memory.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
 namespace weftcli {
 
 namespace {
-
-double peakResidentMegabytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
-}
-
-/// Resident memory of this process now, bytes (/proc/self/statm; 0 if unreadable).
-double residentBytes() {
-  std::ifstream statm("/proc/self/statm");
-  double pages = 0, resident = 0;
-  if (!(statm >> pages >> resident)) return 0;
-  return resident * static_cast<double>(sysconf(_SC_PAGESIZE));
-}
 
 /// Memory the machine has available for a new allocation, bytes (MemAvailable of
 /// /proc/meminfo; infinity if unreadable).
@@ -125,6 +114,8 @@ class FrameSink {
   void close() {
     if (cache_) cache_->close();
   }
+  /// Continues a resumed run's numbering: frames 0 .. count - 1 are on disk already.
+  void resumeAt(std::int64_t count) { written_ = count; }
   std::int64_t written() const { return written_; }
 
  private:
@@ -228,6 +219,36 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
   return names;
 }
 
+const char* signalName(int signal) { return signal == SIGINT ? "SIGINT" : signal == SIGTERM ? "SIGTERM" : "a signal"; }
+
+// Ctrl-C (SIGINT) and SIGTERM during the steps: the handler only records the signal; the
+// loop finishes the step it is in, then writes frames and the checkpoint and reports.
+volatile std::sig_atomic_t gSignal = 0;
+
+extern "C" void onSignal(int signal) { gSignal = signal; }
+
+/// Installs the handler for the lifetime of the object, and puts the previous ones back.
+class SignalScope {
+ public:
+  SignalScope() {
+    struct sigaction action {};
+    action.sa_handler = onSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previousInt_);
+    sigaction(SIGTERM, &action, &previousTerm_);
+  }
+  ~SignalScope() {
+    sigaction(SIGINT, &previousInt_, nullptr);
+    sigaction(SIGTERM, &previousTerm_, nullptr);
+  }
+  SignalScope(const SignalScope&) = delete;
+  SignalScope& operator=(const SignalScope&) = delete;
+
+ private:
+  struct sigaction previousInt_ {};
+  struct sigaction previousTerm_ {};
+};
+
 template <class S>
 int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // Memory asked for before it is taken: what this process holds now plus what the scene
@@ -263,26 +284,59 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
 
   // Steps go in chunks (a frame after each chunk of `every` steps when writing frames;
   // otherwise chunks of about 1% for the progress bar). Wall time counts the stepping only.
+  // A resumed run continues from the checkpoint's step up to `steps` in all (the checkpoint
+  // must come from the same scene and options: load refuses another model, precision or
+  // integrator).
+  if (o.resume) {
+    if (!output.directory.empty() && output.format == "cache")
+      throw std::runtime_error(
+          "--resume cannot append to a frame cache (--format cache): resume with obj or ply "
+          "frames, or without --out");
+    sim.load(*o.resume);
+    if (sim.stepCount() > steps)
+      throw std::runtime_error("--resume: the checkpoint '" + *o.resume + "' is at step " +
+                               std::to_string(sim.stepCount()) + ", beyond the " + std::to_string(steps) +
+                               " steps asked for (--steps)");
+  }
   std::optional<FrameSink<S>> frames;
   if (!output.directory.empty()) {
     frames.emplace(output, sim.model());
-    frames->write(sim.state());
+    if (o.resume)
+      frames->resumeAt(sim.stepCount() / output.every + 1);
+    else
+      frames->write(sim.state());
   }
-  const std::int64_t chunkSize = frames ? output.every : std::max<std::int64_t>(1, steps / 100);
+  // Frames and checkpoints after every `every` steps (counted from the run's start, also
+  // when resumed); otherwise chunks of about 1% for the progress bar. Wall time counts the
+  // stepping only.
+  const bool periodic = frames || (o.checkpoint && o.every);
+  const std::int64_t every = periodic ? output.every : std::max<std::int64_t>(1, steps / 100);
   Progress progress(o.progress && !o.json, steps);
-  weft::StepStatus status;
+  weft::StepStatus status = sim.status();
   double wall = 0;
-  for (std::int64_t remaining = steps; remaining > 0 && status.ok();) {
-    const std::int64_t chunk = std::min(remaining, chunkSize);
-    const auto start = std::chrono::steady_clock::now();
-    status = sim.run(static_cast<weft::Index>(chunk));
-    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    remaining -= chunk;
-    if (frames && status.ok() && chunk == output.every) frames->write(sim.state());
-    progress.update(steps - remaining);
+  int interrupted = 0;
+  {
+    SignalScope signals;
+    gSignal = 0;
+    while (sim.stepCount() < steps && status.ok() && gSignal == 0) {
+      const std::int64_t boundary = std::min(steps, (sim.stepCount() / every + 1) * every);
+      const auto start = std::chrono::steady_clock::now();
+      while (sim.stepCount() < boundary && gSignal == 0 && (status = sim.step()).ok()) {
+      }
+      wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (status.ok() && periodic && sim.stepCount() % every == 0) {
+        if (frames) frames->write(sim.state());
+        if (o.checkpoint && o.every) sim.save(*o.checkpoint);
+      }
+      progress.update(sim.stepCount());
+    }
+    interrupted = gSignal;
   }
   progress.finish();
   if (frames) frames->close();
+  // The last checkpoint: at the end, or where the signal stopped the run (not after a failed
+  // step: resuming it would only fail again).
+  if (o.checkpoint && status.ok()) sim.save(*o.checkpoint);
 
   const weft::Model<S>& model = sim.model();
   const weft::State<S>& state = sim.state();
@@ -343,8 +397,13 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["stable_dt_estimate"] = stableDt;
     else
       j["stable_dt_estimate"] = nullptr;  // no limit (implicit Euler, or a model without springs)
-    j["status"] = weft::stepCodeName(status.code);
+    j["status"] = interrupted ? "interrupted" : weft::stepCodeName(status.code);
+    if (interrupted)
+      j["status_message"] = std::string("stopped by ") + signalName(interrupted) + " after step " +
+                            std::to_string(done) + " of " + std::to_string(steps);
     if (!status.ok()) j["status_message"] = status.message();
+    if (o.checkpoint) j["checkpoint"] = *o.checkpoint;
+    if (o.resume) j["resumed_from"] = *o.resume;
     j["state_hash"] = hash;
     j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
     j["lowest_y"] = lowest;
@@ -463,15 +522,23 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << " M spring evaluations/s\n"
         << "  energy       kinetic " << e.kinetic << " J, spring " << e.spring << " J, gravity " << e.gravity
         << " J; lowest point y = " << lowest << " m\n"
-        << "  status       " << (status.ok() ? std::string("ok") : status.message()) << "\n"
+        << "  status       "
+        << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
+                              std::to_string(done) + " of " + std::to_string(steps)
+            : status.ok() ? std::string("ok")
+                          : status.message())
+        << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MB resident (" << estimate / (1024.0 * 1024.0)
         << " MB estimated before assembling)\n";
+    if (o.resume) out << "  resumed from " << *o.resume << "\n";
+    if (o.checkpoint) out << "  checkpoint   " << *o.checkpoint << "\n";
     if (frames)
       out << "  frames       " << frames->written() << " (" << output.format << ", every " << output.every
           << " steps) in " << output.directory << "\n";
     std::cout << out.str();
   }
+  if (interrupted) return 128 + interrupted;  // the shell's convention: 130 for SIGINT, 143 for SIGTERM
   return status.ok() ? 0 : 3;
 }
 

@@ -32,10 +32,14 @@ struct RunOptions {
   std::optional<std::string> out;
   std::optional<std::string> format;
   std::optional<std::int64_t> every;
+  std::optional<std::string> checkpoint;  // write a checkpoint here: every `every` steps, at the end, when interrupted
+  std::optional<std::string> resume;      // continue the run from this checkpoint
 };
 
 /// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
-/// 0 when every step succeeded, 3 when the stability check stopped the run. With an
+/// 0 when every step succeeded, 3 when the stability check stopped the run, 130 / 143 when
+/// SIGINT / SIGTERM interrupted it (the current step is finished, frames and the checkpoint
+/// are written, the summary says "interrupted"). With an
 /// output directory, frames go there (created): frame 0 is the initial state, then one
 /// frame after every `every` steps (frame_000000.obj / .ply, or one frames.wcache).
 /// Throws for a bad scene (std::exception with a message naming file, field and value).

@@ -51,6 +51,14 @@ class ImplicitEuler final : public Integrator<S> {
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
   void reset() override { warm_ = false; }
+  void saveCarry(ArchiveWriter& out) const override {
+    out.value(warm_);
+    out.array(dv_);
+  }
+  void loadCarry(ArchiveReader& in) override {
+    in.flag(warm_, "implicit Euler's flag");
+    in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
+  }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {

@@ -70,6 +70,21 @@ class Rk45 final : public Integrator<S> {
     proposal_ = 0;
     errorPrevious_ = 1e-4;
   }
+  void saveCarry(ArchiveWriter& out) const override {
+    out.value(primed_);
+    out.value(proposal_);
+    out.value(errorPrevious_);
+    out.array(a_[0]);
+  }
+  void loadCarry(ArchiveReader& in) override {
+    in.flag(primed_, "rk45's flag");
+    in.value(proposal_);
+    in.value(errorPrevious_);
+    in.array(a_[0], a_[0].rows(), 3, "rk45's first slope");
+    if (!(std::isfinite(proposal_) && proposal_ >= 0 && std::isfinite(errorPrevious_) && errorPrevious_ > 0))
+      in.fail("rk45's proposed substep " + std::to_string(proposal_) + " or error " + std::to_string(errorPrevious_) +
+              " is out of range");
+  }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {

@@ -22,6 +22,14 @@ class VelocityVerlet final : public Integrator<S> {
   explicit VelocityVerlet(Index n) : a_(n, 3), vp_(n, 3) {}
   IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
   void reset() override { primed_ = false; }
+  void saveCarry(ArchiveWriter& out) const override {
+    out.value(primed_);
+    out.array(a_);
+  }
+  void loadCarry(ArchiveReader& in) override {
+    in.flag(primed_, "verlet's flag");
+    in.array(a_, a_.rows(), 3, "verlet's acceleration");
+  }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {

@@ -5,15 +5,14 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "../core/text.hpp"
+
 namespace weft {
 
 namespace {
 
 [[noreturn]] void reject(const std::string& where, const std::string& field, double value, const std::string& rule) {
-  std::ostringstream msg;
-  msg.precision(17);
-  msg << where << ": " << field << " must be " << rule << ", got " << value;
-  throw std::invalid_argument(msg.str());
+  throw std::invalid_argument(where + ": " + field + " must be " + rule + ", got " + detail::number(value));
 }
 
 void requireFinite(const std::string& where, const std::string& field, double value) {
@@ -116,11 +115,22 @@ ModelAndState<S> ModelBuilder<S>::build() {
 
   // Values must be representable in S (converting an out-of-range double to float is
   // undefined behaviour, and an infinite position is no position).
-  const auto scalar = [](double value, const char* field, Index i) {
+  const char* precision = sizeof(S) == sizeof(float) ? "float" : "double";
+  const auto scalar = [&](double value, const char* field, Index i) {
     if (!(std::abs(value) <= static_cast<double>(std::numeric_limits<S>::max())))
       reject("ModelBuilder::build", indexed(field, i), value,
-             std::string("within the range of the model's precision (|value| <= ") +
-                 std::to_string(static_cast<double>(std::numeric_limits<S>::max())) + ")");
+             std::string("within the range of ") + precision +
+                 " precision (|value| <= " + detail::number(static_cast<double>(std::numeric_limits<S>::max())) + ")");
+    return static_cast<S>(value);
+  };
+  // Positions also keep the squares of their differences finite (spring lengths, areas,
+  // distances): |coordinate| <= 1e18 m in float, 1e150 m in double (below sqrt(max) / 4).
+  const double farthest = sizeof(S) == sizeof(float) ? 1e18 : 1e150;
+  const auto coordinate = [&](double value, const char* field, Index i) {
+    if (!(std::abs(value) <= farthest))
+      reject("ModelBuilder::build", indexed(field, i), value,
+             std::string("within +-") + detail::number(farthest) + " m in " + precision +
+                 " precision (the squares of distances between particles must stay finite)");
     return static_cast<S>(value);
   };
 
@@ -137,9 +147,9 @@ ModelAndState<S> ModelBuilder<S>::build() {
       reject("ModelBuilder::build", indexed("mass of particle", i), mass_[i],
              "large enough that 1/mass is finite in the chosen precision");
     model.inverseMass_[i] = pinned_[i] ? S(0) : static_cast<S>(1.0 / mass_[i]);
-    state.x(i, 0) = scalar(px_[i], "position.x of particle", i);
-    state.x(i, 1) = scalar(py_[i], "position.y of particle", i);
-    state.x(i, 2) = scalar(pz_[i], "position.z of particle", i);
+    state.x(i, 0) = coordinate(px_[i], "position.x of particle", i);
+    state.x(i, 1) = coordinate(py_[i], "position.y of particle", i);
+    state.x(i, 2) = coordinate(pz_[i], "position.z of particle", i);
     state.v(i, 0) = pinned_[i] ? S(0) : scalar(vx_[i], "velocity.x of particle", i);
     state.v(i, 1) = pinned_[i] ? S(0) : scalar(vy_[i], "velocity.y of particle", i);
     state.v(i, 2) = pinned_[i] ? S(0) : scalar(vz_[i], "velocity.z of particle", i);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -66,8 +67,8 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   pushV_.assign(n, Vec3::Zero());
   pushW_.assign(n, Vec3::Zero());
   invInertiaWorld_.resize(n);
-  kinematicX0_.resize(n);
-  kinematicQ0_.resize(n);
+  kinematicX0_.assign(n, Eigen::Vector3d::Zero());  // (zero for the other bodies: checkpoints hold no garbage)
+  kinematicQ0_.assign(n, Eigen::Quaterniond::Identity());
   targetX_.resize(n);
   targetQ_.resize(n);
   piecePose_.resize(pieces);
@@ -122,6 +123,78 @@ void RigidWorld::setState(const RigidState& s) {
   lastConstraints_.clear();
   lastPairFirstConstraint_.assign(1, 0);
   lastSupports_.clear();
+  supportInput_.clear();
+}
+
+void RigidWorld::saveCarry(ArchiveWriter& out) const {
+  out.section("RIGD");
+  out.vector(state_.x);
+  out.vector(state_.q);
+  out.vector(state_.v);
+  out.vector(state_.w);
+  out.value(state_.time);
+  out.vector(kinematicX0_);
+  out.vector(kinematicQ0_);
+  out.vector(lastPairs_);
+  out.vector(lastCaches_);
+  out.vector(lastConstraints_);
+  out.vector(lastPairFirstConstraint_);
+  out.vector(lastSupports_);
+  out.value(lastSubstep_);
+  out.value(last_);
+  out.value(total_);
+}
+
+void RigidWorld::loadCarry(ArchiveReader& in) {
+  in.section("RIGD");
+  RigidState s;
+  in.vector(s.x, "rigid body positions");
+  in.vector(s.q, "rigid body orientations");
+  in.vector(s.v, "rigid body velocities");
+  in.vector(s.w, "rigid body angular velocities");
+  in.value(s.time);
+  const std::size_t n = model_->bodyCount();
+  if (s.x.size() != n || s.q.size() != n || s.v.size() != n || s.w.size() != n)
+    in.fail("the file has " + std::to_string(s.x.size()) + " rigid bodies, this simulation " + std::to_string(n));
+  std::vector<Eigen::Vector3d> x0;
+  std::vector<Eigen::Quaterniond> q0;
+  in.vector(x0, "kinematic origins");
+  in.vector(q0, "kinematic orientations");
+  if (x0.size() != n || q0.size() != n) in.fail("kinematic origins of " + std::to_string(x0.size()) + " bodies");
+  in.vector(lastPairs_, "rigid pairs");
+  in.vector(lastCaches_, "rigid witness caches");
+  in.vector(lastConstraints_, "rigid contact constraints");
+  in.vector(lastPairFirstConstraint_, "rigid pair constraints");
+  in.vector(lastSupports_, "rigid support contacts");
+  in.value(lastSubstep_);
+  in.value(last_);
+  in.value(total_);
+  // Indices the next step follows: in range and in order, or the file is refused.
+  for (std::size_t b = 0; b < n; ++b)
+    if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())) ||
+        (model_->motion[b] == BodyMotion::Kinematic && !(finite(x0[b]) && std::isfinite(q0[b].norm()))))
+      in.fail("rigid body " + std::to_string(b) + " is not finite");
+  const Index pieces = model_->pieceCount();
+  for (std::size_t k = 0; k < lastPairs_.size(); ++k) {
+    const Pair& p = lastPairs_[k];
+    if (!(p.a >= 0 && p.a < p.b && p.b < pieces) || (k > 0 && !(lastPairs_[k - 1].key() < p.key())))
+      in.fail("rigid pair " + std::to_string(k) + " (" + std::to_string(p.a) + ", " + std::to_string(p.b) +
+              ") is not a sorted pair of the model's " + std::to_string(pieces) + " pieces");
+  }
+  if (lastCaches_.size() != lastPairs_.size() && !lastCaches_.empty())
+    in.fail(std::to_string(lastCaches_.size()) + " witness caches for " + std::to_string(lastPairs_.size()) + " pairs");
+  for (const PairCache& c : lastCaches_) in.checkFlag(c, offsetof(PairCache, touching), "a witness cache");
+  const std::vector<Index>& first = lastPairFirstConstraint_;
+  bool csr = first.size() == lastPairs_.size() + 1 && first.front() == 0 &&
+             first.back() == static_cast<Index>(lastConstraints_.size());
+  for (std::size_t k = 1; csr && k < first.size(); ++k) csr = first[k - 1] <= first[k];
+  if (!csr) in.fail("the rigid pairs' constraint ranges do not cover the constraints in order");
+  if (!(std::isfinite(lastSubstep_) && lastSubstep_ >= 0)) in.fail("the last substep is not >= 0");
+  state_ = std::move(s);
+  backup_ = state_;
+  stepBegin_ = state_;
+  kinematicX0_ = std::move(x0);
+  kinematicQ0_ = std::move(q0);
   supportInput_.clear();
 }
 

@@ -34,6 +34,7 @@
 #include <memory>
 #include <string>
 
+#include "weft/core/archive.hpp"
 #include "weft/effects/force_field.hpp"
 
 namespace weft {
@@ -118,6 +119,12 @@ class Integrator {
   /// calls it whenever the state changes other than by an accepted step of this
   /// integrator: a new state, or a rejected step.
   virtual void reset() {}
+
+  /// Checkpoints (Simulation::save / load): writes, and reads back in the same order, what
+  /// the integrator carries from step to step (Verlet's acceleration, rk45's slope and
+  /// proposed substep, implicit Euler's warm start); nothing for the others.
+  virtual void saveCarry(ArchiveWriter&) const {}
+  virtual void loadCarry(ArchiveReader&) {}
 
   /// (x1, v1) = the state one step h after (x0, v0). All buffers (n x 3), distinct, and of
   /// the particle count given at construction.

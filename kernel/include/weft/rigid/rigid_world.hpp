@@ -48,6 +48,7 @@
 #include <string>
 #include <vector>
 
+#include "weft/core/archive.hpp"
 #include "weft/core/kinematic_path.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/integrate/stability.hpp"
@@ -237,6 +238,12 @@ class RigidWorld {
   const RigidModel& model() const { return *model_; }
   const RigidState& state() const { return state_; }
   void setState(const RigidState& state);
+  /// Checkpoints (Simulation::save / load): the state, the kinematic bodies' path origins,
+  /// the last step's pairs with their warm-start impulses and witness caches, its substep
+  /// and the statistics, read back in the order written (unlike setState, which starts the
+  /// contacts afresh). A body count other than the model's is refused.
+  void saveCarry(ArchiveWriter& out) const;
+  void loadCarry(ArchiveReader& in);
   const RigidOptions& options() const { return options_; }
   const RigidStats& lastStats() const { return last_; }
   const RigidStats& totalStats() const { return total_; }

@@ -1,0 +1,158 @@
+#include "soak_command.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "process_memory.hpp"
+#include "weft/io/scene.hpp"
+#include "weft/weft.hpp"
+
+namespace weftcli {
+
+namespace {
+
+struct RunResult {
+  std::uint64_t hash = 0;
+  std::int64_t steps = 0;
+  std::string status = "ok";
+  double simulated = 0;    // s
+  double wall = 0;         // s
+  double energyStart = 0;  // J, particles and rigid bodies
+  double energyMax = 0, energyMin = 0;
+  double residentEarly = 0, residentEnd = 0;  // bytes, after 1 % of the steps and at the end
+};
+
+template <class S>
+RunResult soakRun(const weft::SceneSpec& spec, std::int64_t steps, int threads) {
+  weft::AssembledScene<S> assembled = weft::assembleScene<S>(spec);
+  weft::SimulationOptions options = assembled.options;
+  options.threads = threads;
+  weft::Simulation<S> sim(std::move(assembled.built), options);
+  const auto energy = [&] {
+    double e = sim.model().particleCount() > 0 ? weft::energy(sim.model(), sim.state(), options.gravity).total() : 0.0;
+    if (const weft::RigidWorld* rigid = sim.rigidWorld()) e += rigid->energy();
+    return e;
+  };
+  RunResult r;
+  r.energyStart = r.energyMax = r.energyMin = energy();
+  const std::int64_t sample = std::max<std::int64_t>(1, steps / 100);
+  weft::StepStatus status;
+  while (sim.stepCount() < steps && status.ok()) {
+    const auto start = std::chrono::steady_clock::now();
+    status = sim.run(static_cast<weft::Index>(std::min(sample, steps - sim.stepCount())));
+    r.wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double e = energy();
+    r.energyMax = std::max(r.energyMax, e);
+    r.energyMin = std::min(r.energyMin, e);
+    if (r.residentEarly == 0) r.residentEarly = residentBytes();
+  }
+  r.residentEnd = residentBytes();
+  r.steps = sim.stepCount();
+  r.simulated = sim.state().time;
+  if (!status.ok()) r.status = std::string(weft::stepCodeName(status.code)) + ": " + status.message();
+  const weft::RigidWorld* rigid = sim.rigidWorld();
+  r.hash = rigid ? weft::stateHash(sim.state()) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(sim.state());
+  return r;
+}
+
+/// Whether something feeds energy in: wind, moving pins, kinematic bodies (then the energy
+/// bound is not checked).
+bool driven(const weft::SceneSpec& spec) {
+  const weft::SimulationOptions& o = spec.simulation;
+  if (o.effects.wind.enabled || !o.kinematicPins.empty()) return true;
+  for (const weft::BodySpec& b : spec.bodies)
+    for (const weft::PinSpec& p : b.pins)
+      if (p.path) return true;
+  for (const weft::RigidBodyDesc& b : o.rigid.bodies)
+    if (b.motion == weft::BodyMotion::Kinematic) return true;
+  return false;
+}
+
+std::string fixed(double v, int digits) {
+  char text[48];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+std::string hex(std::uint64_t h) {
+  char text[19];
+  std::snprintf(text, sizeof text, "0x%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+}  // namespace
+
+int runSoak(const SoakOptions& o) {
+  if (!(std::isfinite(o.seconds) && o.seconds > 0))
+    throw std::invalid_argument("--seconds must be finite and > 0, got " + std::to_string(o.seconds));
+  if (o.maxSteps < 1) throw std::invalid_argument("--max-steps must be >= 1, got " + std::to_string(o.maxSteps));
+  if (o.threads.empty()) throw std::invalid_argument("--threads needs at least one thread count");
+  const std::vector<std::string> scenes = o.scenes.empty() ? weft::builtinSceneNames() : o.scenes;
+  std::ostringstream table;
+  table << "| scene | precision | steps | simulated s | wall s (threads";
+  for (const int t : o.threads) table << " " << t;
+  table << ") | status | final hash | energy J: start, max, min | rise / range | resident MB at 1 % -> end | "
+           "checks |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::cout << table.str() << std::flush;
+  bool allPass = true;
+  for (const std::string& name : scenes) {
+    const weft::SceneSpec spec = weft::builtinSceneSpec(name);
+    const double dt = spec.simulation.dt;
+    const std::int64_t steps = std::min<std::int64_t>(o.maxSteps, static_cast<std::int64_t>(std::ceil(o.seconds / dt)));
+    std::vector<RunResult> runs;
+    for (const int threads : o.threads)
+      runs.push_back(spec.precision == weft::Precision::Float ? soakRun<float>(spec, steps, threads)
+                                                              : soakRun<double>(spec, steps, threads));
+    // The checks: every run ok, one hash, energy not above its start (beyond 1 % of its
+    // range) unless the scene drives it, and resident memory after the first 1 % growing by
+    // at most 2 MB + 5 % (pages of buffers reserved at construction are touched late).
+    std::vector<std::string> failed;
+    bool sameHash = true;
+    for (const RunResult& r : runs) {
+      if (r.status != "ok") failed.push_back("status");
+      sameHash = sameHash && r.hash == runs.front().hash;
+    }
+    if (!sameHash) failed.push_back("hash differs between thread counts");
+    const RunResult& first = runs.front();
+    const double range = std::max({first.energyMax - first.energyMin, std::abs(first.energyStart), 1e-12});
+    const double rise = first.energyMax - first.energyStart;
+    const bool passive = !driven(spec);
+    if (passive && rise > 0.01 * range) failed.push_back("energy rose");
+    double growth = 0;
+    for (const RunResult& r : runs) growth = std::max(growth, r.residentEnd - r.residentEarly);
+    if (growth > 2.0 * 1024 * 1024 + 0.05 * first.residentEarly) failed.push_back("memory grew");
+    std::ostringstream row;
+    row << "| " << name << " | " << (spec.precision == weft::Precision::Float ? "float" : "double") << " | "
+        << first.steps << " | " << fixed(first.simulated, 2) << " | ";
+    for (size_t k = 0; k < runs.size(); ++k) row << (k ? " / " : "") << fixed(runs[k].wall, 1);
+    row << " | " << (failed.empty() || first.status == "ok" ? first.status : first.status.substr(0, 60)) << " | "
+        << hex(first.hash) << (sameHash ? " (all equal)" : " (differ)") << " | " << fixed(first.energyStart, 4) << ", "
+        << fixed(first.energyMax, 4) << ", " << fixed(first.energyMin, 4) << " | "
+        << (passive ? fixed(rise / range, 4) : std::string("driven")) << " | "
+        << fixed(first.residentEarly / (1024.0 * 1024), 1) << " -> " << fixed(first.residentEnd / (1024.0 * 1024), 1)
+        << " | ";
+    if (failed.empty()) {
+      row << "pass";
+    } else {
+      allPass = false;
+      for (size_t k = 0; k < failed.size(); ++k) row << (k ? ", " : "") << failed[k];
+    }
+    row << " |\n";
+    std::cout << row.str() << std::flush;
+    table << row.str();
+  }
+  if (!o.out.empty()) {
+    std::ofstream out(o.out);
+    out << table.str();
+    if (!out) throw std::runtime_error("cannot write '" + o.out + "'");
+  }
+  return allPass ? 0 : 1;
+}
+
+}  // namespace weftcli
