@@ -284,9 +284,10 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
           checkpoint.c_str(), "--every", "40", "--out", frames.c_str(), "--json", static_cast<char*>(nullptr));
     _exit(127);
   }
-  // The first checkpoint says the run is stepping (with the handler in place).
-  for (int k = 0; k < 12000 && !std::filesystem::exists(checkpoint); ++k) usleep(10000);
-  ASSERT_TRUE(std::filesystem::exists(checkpoint)) << "no checkpoint after 120 s";
+  // The second frame says the run is stepping (with the handler in place).
+  const std::string second = frames + "/frame_000001.obj";
+  for (int k = 0; k < 12000 && !std::filesystem::exists(second); ++k) usleep(10000);
+  ASSERT_TRUE(std::filesystem::exists(second)) << "no second frame after 120 s";
   kill(pid, SIGINT);
   int status = 0;
   ASSERT_EQ(waitpid(pid, &status, 0), pid);
@@ -314,6 +315,11 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   std::int64_t files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(frames)) ++files;
   EXPECT_EQ(files, (stopped + 100) / 40 + 1);
+  // A path that cannot be written is refused before the first step.
+  const CliRun unwritable = weft("run flag --size 8 --steps 10 --checkpoint /nonexistent-dir/run.wckpt", true);
+  EXPECT_EQ(unwritable.exitCode, 2);
+  EXPECT_NE(unwritable.out.find("checkpoint '/nonexistent-dir/run.wckpt': cannot write"), std::string::npos)
+      << unwritable.out;
   // A checkpoint of another scene is refused, naming the file.
   const CliRun other = weft("run flag --size 24 --steps 10 --resume " + checkpoint, true);
   EXPECT_EQ(other.exitCode, 2);

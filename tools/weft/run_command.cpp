@@ -298,6 +298,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                                std::to_string(sim.stepCount()) + ", beyond the " + std::to_string(steps) +
                                " steps asked for (--steps)");
   }
+  // A first checkpoint before any step: a path that cannot be written fails now, not after
+  // the run's work.
+  if (o.checkpoint) sim.save(*o.checkpoint);
   std::optional<FrameSink<S>> frames;
   if (!output.directory.empty()) {
     frames.emplace(output, sim.model());
