@@ -126,53 +126,44 @@ void RigidWorld::setState(const RigidState& s) {
   supportInput_.clear();
 }
 
+template <class Archive, class Self>
+void RigidWorld::transfer(Archive& a, Self& self) {
+  a.field(self.state_.x, "rigid body positions");
+  a.field(self.state_.q, "rigid body orientations");
+  a.field(self.state_.v, "rigid body velocities");
+  a.field(self.state_.w, "rigid body angular velocities");
+  a.field(self.state_.time, "rigid time");
+  a.field(self.kinematicX0_, "kinematic origins");
+  a.field(self.kinematicQ0_, "kinematic orientations");
+  a.field(self.lastPairs_, "rigid pairs");
+  a.field(self.lastCaches_, "rigid witness caches");
+  a.field(self.lastConstraints_, "rigid contact constraints");
+  a.field(self.lastPairFirstConstraint_, "rigid pair constraints");
+  a.field(self.lastSupports_, "rigid support contacts");
+  a.field(self.lastSubstep_, "the last substep");
+  a.field(self.last_, "the last step's statistics");
+  a.field(self.total_, "the run's statistics");
+}
+
 void RigidWorld::saveCarry(ArchiveWriter& out) const {
   out.section("RIGD");
-  out.vector(state_.x);
-  out.vector(state_.q);
-  out.vector(state_.v);
-  out.vector(state_.w);
-  out.value(state_.time);
-  out.vector(kinematicX0_);
-  out.vector(kinematicQ0_);
-  out.vector(lastPairs_);
-  out.vector(lastCaches_);
-  out.vector(lastConstraints_);
-  out.vector(lastPairFirstConstraint_);
-  out.vector(lastSupports_);
-  out.value(lastSubstep_);
-  out.value(last_);
-  out.value(total_);
+  transfer(out, *this);
 }
 
 void RigidWorld::loadCarry(ArchiveReader& in) {
   in.section("RIGD");
-  RigidState s;
-  in.vector(s.x, "rigid body positions");
-  in.vector(s.q, "rigid body orientations");
-  in.vector(s.v, "rigid body velocities");
-  in.vector(s.w, "rigid body angular velocities");
-  in.value(s.time);
+  transfer(in, *this);
+  // Sizes and indices the next step follows: in range and in order, or the file is refused
+  // (Simulation::restore then puts the world back as it was).
+  const RigidState& s = state_;
   const std::size_t n = model_->bodyCount();
-  if (s.x.size() != n || s.q.size() != n || s.v.size() != n || s.w.size() != n)
+  if (s.x.size() != n || s.q.size() != n || s.v.size() != n || s.w.size() != n || kinematicX0_.size() != n ||
+      kinematicQ0_.size() != n)
     in.fail("the file has " + std::to_string(s.x.size()) + " rigid bodies, this simulation " + std::to_string(n));
-  std::vector<Eigen::Vector3d> x0;
-  std::vector<Eigen::Quaterniond> q0;
-  in.vector(x0, "kinematic origins");
-  in.vector(q0, "kinematic orientations");
-  if (x0.size() != n || q0.size() != n) in.fail("kinematic origins of " + std::to_string(x0.size()) + " bodies");
-  in.vector(lastPairs_, "rigid pairs");
-  in.vector(lastCaches_, "rigid witness caches");
-  in.vector(lastConstraints_, "rigid contact constraints");
-  in.vector(lastPairFirstConstraint_, "rigid pair constraints");
-  in.vector(lastSupports_, "rigid support contacts");
-  in.value(lastSubstep_);
-  in.value(last_);
-  in.value(total_);
-  // Indices the next step follows: in range and in order, or the file is refused.
   for (std::size_t b = 0; b < n; ++b)
     if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())) ||
-        (model_->motion[b] == BodyMotion::Kinematic && !(finite(x0[b]) && std::isfinite(q0[b].norm()))))
+        (model_->motion[b] == BodyMotion::Kinematic &&
+         !(finite(kinematicX0_[b]) && std::isfinite(kinematicQ0_[b].norm()))))
       in.fail("rigid body " + std::to_string(b) + " is not finite");
   const Index pieces = model_->pieceCount();
   for (std::size_t k = 0; k < lastPairs_.size(); ++k) {
@@ -190,11 +181,8 @@ void RigidWorld::loadCarry(ArchiveReader& in) {
   for (std::size_t k = 1; csr && k < first.size(); ++k) csr = first[k - 1] <= first[k];
   if (!csr) in.fail("the rigid pairs' constraint ranges do not cover the constraints in order");
   if (!(std::isfinite(lastSubstep_) && lastSubstep_ >= 0)) in.fail("the last substep is not >= 0");
-  state_ = std::move(s);
   backup_ = state_;
   stepBegin_ = state_;
-  kinematicX0_ = std::move(x0);
-  kinematicQ0_ = std::move(q0);
   supportInput_.clear();
 }
 

@@ -72,6 +72,25 @@ const char* precisionName(std::uint32_t bytes) { return bytes == 4 ? "float" : b
 }  // namespace
 
 template <class S>
+template <class Archive, class Self>
+void Simulation<S>::transfer(Archive& a, Self& self) {
+  a.field(self.state_.x, "positions");
+  a.field(self.state_.v, "velocities");
+  a.field(self.state_.time, "time");
+  a.field(self.options_.dt, "time step");
+  a.field(self.status_, "status");
+  a.field(self.stepCount_, "step count");
+  a.field(self.lastWork_, "the last step's work");
+  a.field(self.totalWork_, "the run's work");
+  a.field(self.lastCollision_, "the last step's collisions");
+  a.field(self.totalCollision_, "the run's collisions");
+  a.field(self.lastSelf_, "the last step's self-collisions");
+  a.field(self.totalSelf_, "the run's self-collisions");
+  a.field(self.lastCoupling_, "the last step's particle-body contacts");
+  a.field(self.clockStart_, "clock start");
+}
+
+template <class S>
 std::string Simulation<S>::checkpoint() const {
   std::string bytes;
   ArchiveWriter out(bytes);
@@ -86,20 +105,7 @@ std::string Simulation<S>::checkpoint() const {
   out.value(static_cast<std::int64_t>(tracks_.size()));
 
   out.section("SIMU");
-  out.array(state_.x);
-  out.array(state_.v);
-  out.value(state_.time);
-  out.value(options_.dt);
-  out.value(status_);
-  out.value(stepCount_);
-  out.value(lastWork_);
-  out.value(totalWork_);
-  out.value(lastCollision_);
-  out.value(totalCollision_);
-  out.value(lastSelf_);
-  out.value(totalSelf_);
-  out.value(lastCoupling_);
-  out.value(clockStart_);
+  transfer(out, *this);
   std::vector<Vec3d> origins;
   origins.reserve(tracks_.size());
   for (const KinematicTrack& t : tracks_) origins.push_back(t.reference);
@@ -166,22 +172,8 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
   // checks above) the Simulation is put back as it was.
   const std::string before = checkpoint();
   try {
-    const Index n = model_->particleCount();
     in.section("SIMU");
-    in.array(state_.x, n, 3, "positions");
-    in.array(state_.v, n, 3, "velocities");
-    in.value(state_.time);
-    in.value(options_.dt);
-    in.value(status_);
-    in.value(stepCount_);
-    in.value(lastWork_);
-    in.value(totalWork_);
-    in.value(lastCollision_);
-    in.value(totalCollision_);
-    in.value(lastSelf_);
-    in.value(totalSelf_);
-    in.value(lastCoupling_);
-    in.value(clockStart_);
+    transfer(in, *this);
     std::vector<Vec3d> origins;
     in.vector(origins, "kinematic pin origins");
     if (origins.size() != tracks_.size()) in.fail("kinematic pin origins: " + std::to_string(origins.size()));

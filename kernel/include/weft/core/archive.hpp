@@ -26,6 +26,18 @@
 
 namespace weft {
 
+namespace archive_detail {
+template <class T>
+struct IsVector : std::false_type {};
+template <class T, class A>
+struct IsVector<std::vector<T, A>> : std::true_type {};
+template <class T, class = void>
+struct IsDynamicEigen : std::false_type {};
+template <class T>
+struct IsDynamicEigen<T, std::void_t<decltype(T::SizeAtCompileTime)>>
+    : std::bool_constant<T::SizeAtCompileTime == Eigen::Dynamic> {};
+}  // namespace archive_detail
+
 /// 64-bit FNV-1a of `size` bytes, continuing from `hash` (the checkpoint's checksum and
 /// model fingerprint).
 std::uint64_t fnv1a64(const void* data, std::size_t size, std::uint64_t hash = 14695981039346656037ull);
@@ -59,6 +71,18 @@ class ArchiveWriter {
   void text(const std::string& s) {
     value(static_cast<std::uint64_t>(s.size()));
     bytes(s.data(), s.size());
+  }
+  /// One field of a component's transfer function, the one piece of code that lists what a
+  /// checkpoint holds in order, for writing and (with ArchiveReader::field) for reading:
+  /// a vector, a dynamic Eigen array, or a plain value.
+  template <class T>
+  void field(const T& v, const char* /*what*/) {
+    if constexpr (archive_detail::IsVector<T>::value)
+      vector(v);
+    else if constexpr (archive_detail::IsDynamicEigen<T>::value)
+      array(v);
+    else
+      value(v);
   }
   /// A four-letter tag the reader checks (it names the component in a reader's message).
   void section(const char (&tag)[5]) { bytes(tag, 4); }
@@ -131,6 +155,17 @@ class ArchiveReader {
     std::string s(in_.substr(at_, static_cast<std::size_t>(size)));
     at_ += static_cast<std::size_t>(size);
     return s;
+  }
+  /// The reading side of ArchiveWriter::field: a dynamic Eigen array must have the shape
+  /// the object already has (the Simulation's own).
+  template <class T>
+  void field(T& v, const char* what) {
+    if constexpr (archive_detail::IsVector<T>::value)
+      vector(v, what);
+    else if constexpr (archive_detail::IsDynamicEigen<T>::value)
+      array(v, v.rows(), v.cols(), what);
+    else
+      value(v);
   }
   void section(const char (&tag)[5]) {
     char got[4];

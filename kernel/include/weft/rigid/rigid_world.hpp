@@ -341,6 +341,9 @@ class RigidWorld {
   std::vector<Eigen::Vector3d> targetX_;  // per body: kinematic position at the end of the step
   std::vector<Eigen::Quaterniond> targetQ_;
   StepStatus fail(StepCode code, Index body, double value);
+  /// Checkpoints: what saveCarry writes and loadCarry reads, in order, as one list.
+  template <class Archive, class Self>
+  static void transfer(Archive& archive, Self& self);
   /// One chunk of length h. Rollback mode: `shorter` > 0 on return when the chunk must be
   /// cut (the largest length that would do, or h / 2 after a too deep end) and the state
   /// is as it was; `force` takes it whatever it finds.

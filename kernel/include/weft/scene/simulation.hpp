@@ -230,6 +230,10 @@ class Simulation {
   std::unique_ptr<ParticleBodyContacts<S>> coupling_;  // null unless particles and bodies meet
   Vec3Array<S> stepStartX_;                            // (n x 3) positions at the step's start, m (coupling only)
   ParticleBodyStats lastCoupling_;
+  /// Checkpoints: the fields of the "SIMU" section in order, written by an ArchiveWriter
+  /// (Self const) and read by an ArchiveReader with the same code (checkpoint.cpp).
+  template <class Archive, class Self>
+  static void transfer(Archive& archive, Self& self);
 };
 
 extern template class Simulation<float>;
