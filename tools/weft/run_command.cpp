@@ -282,8 +282,6 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       sim.contactSolver() ? std::optional<weft::State<S>>(sim.state()) : std::nullopt;
   const std::string precision = spec.precision == weft::Precision::Float ? "float" : "double";
 
-  // Steps go in chunks (a frame after each chunk of `every` steps when writing frames;
-  // otherwise chunks of about 1% for the progress bar). Wall time counts the stepping only.
   // A resumed run continues from the checkpoint's step up to `steps` in all (the checkpoint
   // must come from the same scene and options: load refuses another model, precision or
   // integrator).
@@ -334,12 +332,13 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       progress.update(sim.stepCount());
     }
     interrupted = gSignal;
+    progress.finish();
+    // Still under the handler, so that a second signal cannot cut these writes short.
+    if (frames) frames->close();
+    // The last checkpoint: at the end, or where the signal stopped the run (not after a
+    // failed step: resuming it would only fail again).
+    if (o.checkpoint && status.ok()) sim.save(*o.checkpoint);
   }
-  progress.finish();
-  if (frames) frames->close();
-  // The last checkpoint: at the end, or where the signal stopped the run (not after a failed
-  // step: resuming it would only fail again).
-  if (o.checkpoint && status.ok()) sim.save(*o.checkpoint);
 
   const weft::Model<S>& model = sim.model();
   const weft::State<S>& state = sim.state();

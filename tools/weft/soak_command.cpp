@@ -25,7 +25,7 @@ struct RunResult {
   double wall = 0;         // s
   double energyStart = 0;  // J, particles and rigid bodies
   double energyMax = 0, energyMin = 0;
-  double residentEarly = 0, residentEnd = 0;  // bytes, after 1 % of the steps and at the end
+  double residentEarly = 0, residentHalf = 0, residentEnd = 0;  // bytes, after 1 % and 50 % of the steps, at the end
 };
 
 template <class S>
@@ -51,8 +51,10 @@ RunResult soakRun(const weft::SceneSpec& spec, std::int64_t steps, int threads) 
     r.energyMax = std::max(r.energyMax, e);
     r.energyMin = std::min(r.energyMin, e);
     if (r.residentEarly == 0) r.residentEarly = residentBytes();
+    if (r.residentHalf == 0 && 2 * sim.stepCount() >= steps) r.residentHalf = residentBytes();
   }
   r.residentEnd = residentBytes();
+  if (r.residentHalf == 0) r.residentHalf = r.residentEnd;  // (a run that stopped early)
   r.steps = sim.stepCount();
   r.simulated = sim.state().time;
   if (!status.ok()) r.status = std::string(weft::stepCodeName(status.code)) + ": " + status.message();
@@ -97,7 +99,7 @@ int runSoak(const SoakOptions& o) {
   std::ostringstream table;
   table << "| scene | precision | steps | simulated s | wall s (threads";
   for (const int t : o.threads) table << " " << t;
-  table << ") | status | final hash | energy J: start, max, min | rise / range | resident MB at 1 % -> end | "
+  table << ") | status | final hash | energy J: start, max, min | rise / range | resident MB at 1 % -> 50 % -> end | "
            "checks |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
   std::cout << table.str() << std::flush;
   bool allPass = true;
@@ -110,8 +112,10 @@ int runSoak(const SoakOptions& o) {
       runs.push_back(spec.precision == weft::Precision::Float ? soakRun<float>(spec, steps, threads)
                                                               : soakRun<double>(spec, steps, threads));
     // The checks: every run ok, one hash, energy not above its start (beyond 1 % of its
-    // range) unless the scene drives it, and resident memory after the first 1 % growing by
-    // at most 2 MB + 5 % (pages of buffers reserved at construction are touched late).
+    // range) unless the scene drives it, and resident memory flat over the second half of
+    // the run (at most 1 MB + 1 % more at the end than at 50 %). Before that it may grow
+    // as contacts appear: pages of buffers reserved at construction are touched when a pile
+    // lands, say, and the first contacts size the caches; the table shows 1 % -> 50 % -> end.
     std::vector<std::string> failed;
     bool sameHash = true;
     for (const RunResult& r : runs) {
@@ -125,8 +129,8 @@ int runSoak(const SoakOptions& o) {
     const bool passive = !driven(spec);
     if (passive && rise > 0.01 * range) failed.push_back("energy rose");
     double growth = 0;
-    for (const RunResult& r : runs) growth = std::max(growth, r.residentEnd - r.residentEarly);
-    if (growth > 2.0 * 1024 * 1024 + 0.05 * first.residentEarly) failed.push_back("memory grew");
+    for (const RunResult& r : runs) growth = std::max(growth, r.residentEnd - r.residentHalf);
+    if (growth > 1024.0 * 1024 + 0.01 * first.residentHalf) failed.push_back("memory grew in the second half");
     std::ostringstream row;
     row << "| " << name << " | " << (spec.precision == weft::Precision::Float ? "float" : "double") << " | "
         << first.steps << " | " << fixed(first.simulated, 2) << " | ";
@@ -135,8 +139,8 @@ int runSoak(const SoakOptions& o) {
         << hex(first.hash) << (sameHash ? " (all equal)" : " (differ)") << " | " << fixed(first.energyStart, 4) << ", "
         << fixed(first.energyMax, 4) << ", " << fixed(first.energyMin, 4) << " | "
         << (passive ? fixed(rise / range, 4) : std::string("driven")) << " | "
-        << fixed(first.residentEarly / (1024.0 * 1024), 1) << " -> " << fixed(first.residentEnd / (1024.0 * 1024), 1)
-        << " | ";
+        << fixed(first.residentEarly / (1024.0 * 1024), 1) << " -> " << fixed(first.residentHalf / (1024.0 * 1024), 1)
+        << " -> " << fixed(first.residentEnd / (1024.0 * 1024), 1) << " | ";
     if (failed.empty()) {
       row << "pass";
     } else {
