@@ -71,11 +71,17 @@ bool startsLikePly(std::string_view line) {
 /// tests/fuzz/fuzz_mesh.cpp).
 /// `nextLine(line)` yields the file's lines, split at '\n', and returns false at the end;
 /// '\r' and NUL also end a line for assimp, so they split a line here too.
+/// A header that does end must be text up to its end_header line (printable ASCII, tabs,
+/// line ends): assimp 5.2's PLY reader crashes on some headers with binary bytes in them
+/// (a segmentation fault inside libassimp, found by fuzz_mesh), and a real header is text.
 template <class NextLine>
 void checkPlyHeader(const std::string& path, NextLine nextLine) {
   std::string_view text;
   bool first = true;
+  std::int64_t lineNumber = 0, badLine = 0;
+  int badByte = -1;
   while (nextLine(text)) {
+    ++lineNumber;
     for (;;) {
       const size_t end = text.find_first_of(std::string_view("\r\0", 2));
       const std::string_view line = text.substr(0, end);
@@ -83,7 +89,22 @@ void checkPlyHeader(const std::string& path, NextLine nextLine) {
         if (!startsLikePly(line)) return;  // not PLY: assimp decides
         first = false;
       } else if (startsWithToken(line, "end_header")) {
+        if (badByte >= 0) {
+          char hex[8];
+          std::snprintf(hex, sizeof hex, "0x%02x", badByte);
+          fail(path, std::string("PLY header has a byte that is not text (") + hex + " in line " +
+                         std::to_string(badLine) + "): the file is damaged or not a PLY file");
+        }
         return;
+      }
+      // Not the end: remember the first byte that is not text (a NUL ending it counts).
+      const std::string_view scanned = end == std::string_view::npos ? line : text.substr(0, end + 1);
+      for (size_t k = 0; k < scanned.size() && badByte < 0; ++k) {
+        const unsigned char u = static_cast<unsigned char>(scanned[k]);
+        if ((u < 32 && u != '\t' && u != '\r') || u >= 127) {
+          badByte = u;
+          badLine = lineNumber;
+        }
       }
       if (end == std::string_view::npos) break;
       text.remove_prefix(end + 1);
