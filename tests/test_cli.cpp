@@ -7,8 +7,10 @@
 
 #include <cctype>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -370,6 +372,121 @@ TEST(Cli, FramesOutCacheHoldsEveryKthStateOfTheLibraryRun) {
   EXPECT_TRUE(frame.x == sim.state().x) << "the cached frame differs from the library's state";
 }
 
+/// A .glb's JSON chunk and binary chunk.
+struct Glb {
+  nlohmann::json json;
+  std::string bin;
+};
+
+Glb readGlb(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  Glb glb;
+  std::uint32_t header[5] = {};
+  EXPECT_GE(bytes.size(), sizeof header);
+  if (bytes.size() < sizeof header) return glb;
+  std::memcpy(header, bytes.data(), sizeof header);
+  EXPECT_EQ(bytes.substr(0, 4), "glTF");
+  EXPECT_EQ(header[1], 2u);
+  EXPECT_EQ(header[2], bytes.size());
+  EXPECT_EQ(header[4], 0x4E4F534Au);  // "JSON"
+  glb.json = nlohmann::json::parse(bytes.substr(20, header[3]));
+  const std::size_t binAt = 20 + header[3];
+  std::uint32_t bin[2] = {};
+  EXPECT_GE(bytes.size(), binAt + sizeof bin);
+  if (bytes.size() < binAt + sizeof bin) return glb;
+  std::memcpy(bin, bytes.data() + binAt, sizeof bin);
+  EXPECT_EQ(bin[1], 0x004E4942u);  // "BIN\0"
+  EXPECT_EQ(binAt + 8 + bin[0], bytes.size());
+  glb.bin = bytes.substr(binAt + 8, bin[0]);
+  return glb;
+}
+
+/// The floats of accessor `index` (tightly packed, in the one buffer).
+std::vector<float> glbFloats(const Glb& glb, int index) {
+  const nlohmann::json& a = glb.json["accessors"][index];
+  const nlohmann::json& v = glb.json["bufferViews"][a["bufferView"].get<int>()];
+  const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC3" ? 3 : 1);
+  const std::size_t at = v.value("byteOffset", std::size_t{0}) + a.value("byteOffset", std::size_t{0});
+  EXPECT_LE(at + 4 * count, glb.bin.size());
+  std::vector<float> values(count);
+  if (at + 4 * count <= glb.bin.size()) std::memcpy(values.data(), glb.bin.data() + at, 4 * count);
+  return values;
+}
+
+/// The "v x y z" lines of an OBJ file.
+std::vector<double> objVertices(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<double> x;
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("v ", 0) == 0) {
+      std::istringstream fields(line.substr(2));
+      for (double value; fields >> value;) x.push_back(value);
+    }
+  return x;
+}
+
+// --format gltf: one run.glb; frame k (frame 0 plus target k - 1, at its animation key) is
+// the k-th OBJ frame of the same run within one float rounding.
+TEST(Cli, FramesOutGltfIsOneGlbThatPlaysTheRunsFrames) {
+  const std::string dir = ::testing::TempDir() + "weft_cli_frames_gltf", objs = dir + "_obj";
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(objs);
+  const std::string run = "run flag --size 8 --steps 10 --every 5 --threads 1 --out ";
+  const nlohmann::json j = runJson(run + dir + " --format gltf");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["frames_written"], 3);
+  std::set<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) files.insert(entry.path().filename().string());
+  EXPECT_EQ(files, std::set<std::string>{"run.glb"});
+  runJson(run + objs + " --format obj");
+  const Glb glb = readGlb(dir + "/run.glb");
+  if (testing::Test::HasFailure()) return;
+  EXPECT_EQ(glb.json["asset"]["version"], "2.0");
+  EXPECT_EQ(glb.json["nodes"][0]["name"], "flag");
+  const nlohmann::json& primitive = glb.json["meshes"][0]["primitives"][0];
+  EXPECT_EQ(primitive["mode"], 4);  // TRIANGLES
+  EXPECT_EQ(glb.json["accessors"][primitive["indices"].get<int>()]["count"], 3 * 2 * 7 * 7);
+  ASSERT_EQ(primitive["targets"].size(), 2u);
+  const nlohmann::json& sampler = glb.json["animations"][0]["samplers"][0];
+  const std::vector<float> times = glbFloats(glb, sampler["input"].get<int>());
+  const double dt = defaultTimeStep(BuiltinScene::Flag, 8);
+  ASSERT_EQ(times.size(), 3u);
+  const std::vector<float> base = glbFloats(glb, primitive["attributes"]["POSITION"].get<int>());
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(times[k], static_cast<float>(5 * k * dt)) << "key " << k;
+    char name[32];
+    std::snprintf(name, sizeof name, "/frame_%06d.obj", k);
+    const std::vector<double> expected = objVertices(objs + name);
+    ASSERT_EQ(expected.size(), 3u * 64);
+    const std::vector<float> delta =
+        k == 0 ? std::vector<float>(base.size(), 0.0f) : glbFloats(glb, primitive["targets"][k - 1]["POSITION"]);
+    ASSERT_EQ(delta.size(), base.size());
+    for (std::size_t i = 0; i < expected.size(); ++i)
+      EXPECT_NEAR(base[i] + delta[i], expected[i], 1.2e-7 * std::max(1.0, std::abs(expected[i])))
+          << "frame " << k << " coordinate " << i;
+  }
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(objs);
+}
+
+// More frames than one file holds is refused before the run, with the --every that fits.
+TEST(Cli, GltfWithTooManyFramesIsRefusedBeforeTheRun) {
+  const std::string dir = ::testing::TempDir() + "weft_cli_frames_gltf_many";
+  std::filesystem::remove_all(dir);
+  const CliRun r = weft("run flag --size 4 --steps 5000 --every 1 --out " + dir + " --format gltf", true);
+  EXPECT_EQ(r.exitCode, 2) << r.out;
+  EXPECT_NE(r.out.find("--format gltf --every 1: 5001 frames of 5000 steps, more than the 4096"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("use --every 2 or more"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir));
+  // And with that --every it runs.
+  const nlohmann::json j = runJson("run flag --size 4 --steps 5000 --every 2 --out " + dir + " --format gltf");
+  EXPECT_EQ(j["frames_written"], 2501);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/run.glb"));
+  std::filesystem::remove_all(dir);
+}
+
 struct BadOption {
   const char* args;
   const char* option;  // what the message must name
@@ -389,25 +506,29 @@ TEST_P(CliBadOption, ExitsNonZeroNamingTheOptionAndTheValue) {
 
 INSTANTIATE_TEST_SUITE_P(
     Run, CliBadOption,
-    ::testing::Values(BadOption{"flag --integrator foo", "--integrator", "foo"}, BadOption{"moon", "scene", "moon"},
-                      BadOption{"flag --dt 0", "--dt", "0"}, BadOption{"flag --dt -1", "--dt", "-1"},
-                      BadOption{"flag --dt nan", "--dt", "nan"}, BadOption{"flag --dt 1e-3x", "--dt", "1e-3x"},
-                      BadOption{"flag --size 1", "--size", "1"}, BadOption{"flag --steps abc", "--steps", "abc"},
-                      BadOption{"flag --precision half", "--precision", "half"},
-                      BadOption{"flag --threads -1", "--threads", "-1"},
-                      BadOption{"flag --strategy scatter", "--strategy", "scatter"},
-                      BadOption{"flag --integrator rk45 --rtol -1", "--rtol", "-1"},
-                      BadOption{"flag --integrator rk45 --rtol nan", "--rtol", "nan"},
-                      BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
-                      BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
-                      BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
-                      BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},
-                      BadOption{"flag --out weft_bad_out --every 0", "--every", "0"},
-                      BadOption{"flag --every 2", "--every", "--out"},
-                      BadOption{"flag --steps -5", "--steps", "must be >= 0, got -5"},
-                      BadOption{"flag --szie 32", "--szie", "did you mean --size?"},
-                      BadOption{"flag --time-of-impact later", "--time-of-impact", "later"},
-                      BadOption{"flag rope", "unexpected argument", "rope"}),
+    ::testing::Values(
+        BadOption{"flag --integrator foo", "--integrator", "foo"}, BadOption{"moon", "scene", "moon"},
+        BadOption{"flag --dt 0", "--dt", "0"}, BadOption{"flag --dt -1", "--dt", "-1"},
+        BadOption{"flag --dt nan", "--dt", "nan"}, BadOption{"flag --dt 1e-3x", "--dt", "1e-3x"},
+        BadOption{"flag --size 1", "--size", "1"}, BadOption{"flag --steps abc", "--steps", "abc"},
+        BadOption{"flag --precision half", "--precision", "half"}, BadOption{"flag --threads -1", "--threads", "-1"},
+        BadOption{"flag --strategy scatter", "--strategy", "scatter"},
+        BadOption{"flag --integrator rk45 --rtol -1", "--rtol", "-1"},
+        BadOption{"flag --integrator rk45 --rtol nan", "--rtol", "nan"},
+        BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
+        BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
+        BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
+        BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},
+        BadOption{"flag --out /proc/self --format gltf", "--out /proc/self --format gltf",
+                  "cannot open for writing '/proc/self/run.glb.frames.tmp'"},
+        BadOption{"stack --out weft_bad_out --format gltf", "--format gltf", "the scene 'stack' has no particles"},
+        BadOption{"flag --out weft_bad_out --format gltf --resume weft_no.wckpt", "--resume",
+                  "cannot append to a glTF file (--format gltf)"},
+        BadOption{"flag --out weft_bad_out --every 0", "--every", "0"}, BadOption{"flag --every 2", "--every", "--out"},
+        BadOption{"flag --steps -5", "--steps", "must be >= 0, got -5"},
+        BadOption{"flag --szie 32", "--szie", "did you mean --size?"},
+        BadOption{"flag --time-of-impact later", "--time-of-impact", "later"},
+        BadOption{"flag rope", "unexpected argument", "rope"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)

@@ -1,4 +1,5 @@
-// tests/test_io.cpp — frames out: topology, OBJ, PLY and the binary frame cache.
+// tests/test_io.cpp — frames out: topology, OBJ, PLY, the binary frame cache and (when
+// weft::io is built: WEFT_TEST_GLTF) the animated glTF, read back with tinygltf.
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -14,6 +15,18 @@
 #include <vector>
 
 #include "support/test_support.hpp"
+
+#ifdef WEFT_TEST_GLTF
+#include <weft/io/gltf.hpp>
+
+// The reader: tinygltf compiled here, apart from the copy inside weft::io (which lives in a
+// namespace of its own), so the file is read by code that did not write it.
+#define TINYGLTF_IMPLEMENTATION
+#define TINYGLTF_NO_STB_IMAGE
+#define TINYGLTF_NO_STB_IMAGE_WRITE
+#define TINYGLTF_NO_EXTERNAL_IMAGE
+#include <tiny_gltf.h>
+#endif
 
 namespace weft::test {
 namespace {
@@ -343,6 +356,299 @@ TEST(Frames, TopologyIndexOutOfRangeIsRejectedNamingTheField) {
   EXPECT_NE(message.find("7"), std::string::npos) << message;
   EXPECT_FALSE(fs::exists(path));
 }
+
+#ifdef WEFT_TEST_GLTF
+// ---------------------------------------------------------------------------------------
+// glTF
+// ---------------------------------------------------------------------------------------
+
+/// The elements of a tightly packed float or uint32 accessor, as double.
+std::vector<double> accessorValues(const tinygltf::Model& m, int index) {
+  const tinygltf::Accessor& a = m.accessors.at(static_cast<std::size_t>(index));
+  const tinygltf::BufferView& v = m.bufferViews.at(static_cast<std::size_t>(a.bufferView));
+  const std::vector<unsigned char>& data = m.buffers.at(static_cast<std::size_t>(v.buffer)).data;
+  const std::size_t components = a.type == TINYGLTF_TYPE_VEC3 ? 3 : 1;
+  EXPECT_EQ(v.byteStride, 0u);
+  EXPECT_LE(v.byteOffset + a.byteOffset + 4 * components * a.count, data.size());
+  EXPECT_LE(a.byteOffset + 4 * components * a.count, v.byteLength);
+  std::vector<double> values(components * a.count);
+  const unsigned char* p = data.data() + v.byteOffset + a.byteOffset;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    if (a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) {
+      float f;
+      std::memcpy(&f, p + 4 * k, 4);
+      values[k] = f;
+    } else {
+      EXPECT_EQ(a.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+      std::uint32_t u;
+      std::memcpy(&u, p + 4 * k, 4);
+      values[k] = u;
+    }
+  }
+  return values;
+}
+
+/// Reads a .glb with tinygltf; fails the test on any error.
+tinygltf::Model loadGlb(const std::string& path) {
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string error, warning;
+  const bool ok = loader.LoadBinaryFromFile(&m, &error, &warning, path);
+  EXPECT_TRUE(ok) << path << ": " << error;
+  EXPECT_TRUE(warning.empty()) << warning;
+  return m;
+}
+
+/// A POSITION accessor's min and max must be exactly the bounds of its values (glTF 2.0).
+void expectBoundsAreExact(const tinygltf::Model& m, int index) {
+  const tinygltf::Accessor& a = m.accessors.at(static_cast<std::size_t>(index));
+  const std::vector<double> v = accessorValues(m, index);
+  ASSERT_EQ(a.minValues.size(), 3u);
+  ASSERT_EQ(a.maxValues.size(), 3u);
+  for (std::size_t c = 0; c < 3; ++c) {
+    double lo = v[c], hi = v[c];
+    for (std::size_t i = c; i < v.size(); i += 3) {
+      lo = std::min(lo, v[i]);
+      hi = std::max(hi, v[i]);
+    }
+    EXPECT_EQ(a.minValues[c], lo) << "accessor " << index << " axis " << c;
+    EXPECT_EQ(a.maxValues[c], hi) << "accessor " << index << " axis " << c;
+  }
+}
+
+/// Frames that remove their files before and after.
+std::string gltfPath(const std::string& name) {
+  const std::string path = tempPath(name);
+  fs::remove(path + ".frames.tmp");
+  return path;
+}
+
+void expectNoTemporaries(const std::string& path) {
+  EXPECT_FALSE(fs::exists(path + ".tmp")) << path << ".tmp left behind";
+  EXPECT_FALSE(fs::exists(path + ".frames.tmp")) << path << ".frames.tmp left behind";
+}
+
+// A flag run written every 3 steps: read back with tinygltf, the base mesh plus the morph
+// targets, weighted as the animation's keys say (what an importer does), give each frame's
+// positions within one float rounding, at the frame's time.
+TYPED_TEST(FramesTyped, GltfPlaysBackEveryFrameOfTheRun) {
+  using S = TypeParam;
+  SimulationOptions options;
+  options.threads = 1;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, 6);
+  Simulation<S> sim(makeFlag<S>(6), options);
+  const FrameTopology topology = frameTopology(sim.model());
+  const std::string path = gltfPath(std::string("flag_") + scalarName<S>() + ".glb");
+  std::vector<State<S>> written;
+  {
+    GltfAnimationWriter<S> writer(path, sim.model().particleCount(), topology, GltfOptions{"flag"});
+    for (int frame = 0; frame < 5; ++frame) {
+      if (frame > 0) {
+        ASSERT_TRUE(sim.run(3).ok());
+      }
+      writer.append(sim.state());
+      written.push_back(sim.state());
+    }
+    EXPECT_EQ(writer.frameCount(), 5);
+    EXPECT_FALSE(fs::exists(path)) << "the file must appear only once closed";
+    writer.close();
+  }
+  expectNoTemporaries(path);
+  const std::size_t F = written.size(), n = 36;
+  // The GLB header: magic, version 2, the file's length.
+  const std::string bytes = readAll(path);
+  ASSERT_GE(bytes.size(), 12u);
+  std::uint32_t header[3];
+  std::memcpy(header, bytes.data(), sizeof header);
+  EXPECT_EQ(bytes.substr(0, 4), "glTF");
+  EXPECT_EQ(header[1], 2u);
+  EXPECT_EQ(header[2], bytes.size());
+  const tinygltf::Model m = loadGlb(path);
+  if (::testing::Test::HasFailure()) return;
+  ASSERT_EQ(m.buffers.size(), 1u);
+  EXPECT_EQ(m.buffers[0].data.size(), gltfBinaryBytes(36, topology, 5));
+  EXPECT_EQ(m.asset.version, "2.0");
+  ASSERT_EQ(m.scenes.size(), 1u);
+  ASSERT_EQ(m.nodes.size(), 1u);
+  EXPECT_EQ(m.nodes[0].name, "flag");
+  ASSERT_EQ(m.nodes[0].mesh, 0);
+  ASSERT_EQ(m.meshes.size(), 1u);
+  ASSERT_EQ(m.meshes[0].primitives.size(), 1u);
+  const tinygltf::Primitive& p = m.meshes[0].primitives[0];
+  EXPECT_EQ(p.mode, TINYGLTF_MODE_TRIANGLES);
+
+  // The triangles, as the topology has them.
+  const std::vector<double> indices = accessorValues(m, p.indices);
+  ASSERT_EQ(indices.size(), 3 * topology.triangles.size());
+  for (std::size_t t = 0; t < topology.triangles.size(); ++t)
+    for (std::size_t k = 0; k < 3; ++k) EXPECT_EQ(indices[3 * t + k], topology.triangles[t][k]);
+
+  // Frame 0 is the base; every other frame a target of deltas; all with exact bounds.
+  const int basePositions = p.attributes.at("POSITION");
+  ASSERT_EQ(m.accessors[static_cast<std::size_t>(basePositions)].count, n);
+  expectBoundsAreExact(m, basePositions);
+  ASSERT_EQ(p.targets.size(), F - 1);
+  std::vector<std::vector<double>> deltas;
+  for (const auto& target : p.targets) {
+    ASSERT_EQ(m.accessors[static_cast<std::size_t>(target.at("POSITION"))].count, n);
+    expectBoundsAreExact(m, target.at("POSITION"));
+    deltas.push_back(accessorValues(m, target.at("POSITION")));
+  }
+  EXPECT_EQ(m.meshes[0].weights, std::vector<double>(F - 1, 0.0));
+
+  // The animation: LINEAR on the node's weights, keyed at the frames' times.
+  ASSERT_EQ(m.animations.size(), 1u);
+  const tinygltf::Animation& a = m.animations[0];
+  ASSERT_EQ(a.channels.size(), 1u);
+  ASSERT_EQ(a.samplers.size(), 1u);
+  EXPECT_EQ(a.channels[0].target_node, 0);
+  EXPECT_EQ(a.channels[0].target_path, "weights");
+  EXPECT_EQ(a.samplers[0].interpolation, "LINEAR");
+  const std::vector<double> times = accessorValues(m, a.samplers[0].input);
+  const tinygltf::Accessor& input = m.accessors[static_cast<std::size_t>(a.samplers[0].input)];
+  ASSERT_EQ(times.size(), F);
+  EXPECT_EQ(input.minValues, std::vector<double>{times.front()});
+  EXPECT_EQ(input.maxValues, std::vector<double>{times.back()});
+  const std::vector<double> weights = accessorValues(m, a.samplers[0].output);
+  ASSERT_EQ(weights.size(), F * (F - 1));
+
+  const std::vector<double> base = accessorValues(m, basePositions);
+  for (std::size_t k = 0; k < F; ++k) {
+    EXPECT_EQ(times[k], static_cast<float>(written[k].time)) << "key " << k;
+    if (k > 0) {
+      EXPECT_GT(times[k], times[k - 1]);
+    }
+    double worst = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        // As an importer computes it, in float: base + sum of weight x delta.
+        float x = static_cast<float>(base[3 * i + c]);
+        for (std::size_t j = 0; j + 1 < F; ++j)
+          x += static_cast<float>(weights[k * (F - 1) + j]) * static_cast<float>(deltas[j][3 * i + c]);
+        const double expected = static_cast<double>(written[k].x(static_cast<Index>(i), static_cast<int>(c)));
+        worst = std::max(worst, std::abs(x - expected) / std::max(1.0, std::abs(expected)));
+      }
+    // One rounding of the base and one of the sum: 2^-23 relative at most.
+    EXPECT_LE(worst, 1.2e-7) << "frame " << k;
+  }
+  fs::remove(path);
+}
+
+TEST(Frames, GltfOfARopeHasItsStructuralSpringsAsLines) {
+  const ModelAndState<double> rope = makeRope<double>(5);
+  const std::string path = gltfPath("rope.glb");
+  GltfAnimationWriter<double> writer(path, 5, frameTopology(rope.model));
+  writer.append(rope.state);
+  writer.close();
+  const tinygltf::Model m = loadGlb(path);
+  if (::testing::Test::HasFailure()) return;
+  const tinygltf::Primitive& p = m.meshes.at(0).primitives.at(0);
+  EXPECT_EQ(p.mode, TINYGLTF_MODE_LINE);
+  EXPECT_EQ(accessorValues(m, p.indices), (std::vector<double>{0, 1, 1, 2, 2, 3, 3, 4}));
+  // One frame: a still mesh, no targets and no animation.
+  EXPECT_TRUE(p.targets.empty());
+  EXPECT_TRUE(m.animations.empty());
+  const std::vector<double> x = accessorValues(m, p.attributes.at("POSITION"));
+  ASSERT_EQ(x.size(), 15u);
+  for (Index i = 0; i < 5; ++i)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(x[3 * i + c], static_cast<float>(rope.state.x(i, c)));
+  fs::remove(path);
+
+  // Particles joined by nothing: points.
+  const std::string points = gltfPath("points.glb");
+  GltfAnimationWriter<double> pointWriter(points, 5, FrameTopology{});
+  pointWriter.append(rope.state);
+  pointWriter.close();
+  const tinygltf::Model pm = loadGlb(points);
+  EXPECT_EQ(pm.meshes.at(0).primitives.at(0).mode, TINYGLTF_MODE_POINTS);
+  EXPECT_EQ(pm.meshes.at(0).primitives.at(0).indices, -1);
+  fs::remove(points);
+}
+
+TEST(Frames, GltfBadInputsAreRejectedNamingTheFieldAndTheValue) {
+  const ModelAndState<double> flag = makeFlag<double>(3);
+  const FrameTopology topology = frameTopology(flag.model);
+  const std::string path = gltfPath("bad.glb");
+
+  // An unwritable place fails in the constructor, naming the path and the reason.
+  const std::string dir = ::testing::TempDir() + "weft_io_no_such_directory_gltf";
+  fs::remove_all(dir);
+  std::string message =
+      thrownMessage<std::runtime_error>([&] { GltfAnimationWriter<double> w(dir + "/run.glb", 9, topology); });
+  EXPECT_NE(message.find(dir + "/run.glb.frames.tmp"), std::string::npos) << message;
+  EXPECT_NE(message.find(std::strerror(ENOENT)), std::string::npos) << message;
+  EXPECT_FALSE(fs::exists(dir));
+
+  message = thrownMessage<std::invalid_argument>([&] { GltfAnimationWriter<double> w(path, 0, FrameTopology{}); });
+  EXPECT_NE(message.find("particleCount = 0"), std::string::npos) << message;
+  FrameTopology badTopology = topology;
+  badTopology.triangles[2][1] = 9;
+  message = thrownMessage<std::invalid_argument>([&] { GltfAnimationWriter<double> w(path, 9, badTopology); });
+  EXPECT_NE(message.find("triangles[2][1] = 9 is not a particle index in [0, 9)"), std::string::npos) << message;
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+
+  {
+    GltfAnimationWriter<double> w(path, 9, topology);
+    message = thrownMessage<std::logic_error>([&] { w.close(); });
+    EXPECT_NE(message.find("before any frame"), std::string::npos) << message;
+  }
+  {
+    GltfAnimationWriter<double> w(path, 9, topology);
+    State<double> small = flag.state;
+    small.x.conservativeResize(4, 3);
+    message = thrownMessage<std::invalid_argument>([&] { w.append(small); });
+    EXPECT_NE(message.find("state.x has 4 rows, the file holds 9 particles"), std::string::npos) << message;
+    w.append(flag.state);
+    // The same time again: keys must increase.
+    message = thrownMessage<std::invalid_argument>([&] { w.append(flag.state); });
+    EXPECT_NE(message.find("frame 1: state.time = 0 s"), std::string::npos) << message;
+    EXPECT_NE(message.find("not a finite time later than the previous frame's 0 s"), std::string::npos) << message;
+    State<double> broken = flag.state;
+    broken.time = 1;
+    broken.x(5, 1) = std::numeric_limits<double>::quiet_NaN();
+    message = thrownMessage<std::invalid_argument>([&] { w.append(broken); });
+    EXPECT_NE(message.find("state.x(5, 1) = nan is not finite"), std::string::npos) << message;
+    broken.x(5, 1) = 1e300;
+    message = thrownMessage<std::invalid_argument>([&] { w.append(broken); });
+    EXPECT_NE(message.find("state.x(5, 1) = 1.0000000000000001e+300 does not fit a float"), std::string::npos)
+        << message;
+    EXPECT_EQ(w.frameCount(), 1);
+    // Destroyed unclosed: no file, no temporaries.
+  }
+  EXPECT_FALSE(fs::exists(path));
+  expectNoTemporaries(path);
+
+  // The limits: 4096 frames of a small model; fewer when 4 GiB is the bound.
+  EXPECT_EQ(gltfMaxFrames(9, topology), kGltfMaxFrames);
+  EXPECT_EQ(gltfMaxFrames(100'000'000, FrameTopology{}), 3);  // 1.2 GB a frame
+  EXPECT_EQ(gltfMaxFrames(400'000'000, FrameTopology{}), 0);
+  message =
+      thrownMessage<std::invalid_argument>([&] { GltfAnimationWriter<float> w(path, 400'000'000, FrameTopology{}); });
+  EXPECT_NE(message.find("more than a .glb holds (4 GiB)"), std::string::npos) << message;
+  expectNoTemporaries(path);
+}
+
+TEST(Frames, GltfRefusesTheFrameAfterItsLimit) {
+  const ModelAndState<float> rope = makeRope<float>(2);
+  const std::string path = gltfPath("limit.glb");
+  GltfAnimationWriter<float> w(path, 2, FrameTopology{});
+  State<float> s = rope.state;
+  for (std::int64_t k = 0; k < kGltfMaxFrames; ++k) {
+    s.time = static_cast<double>(k) * 0.01;
+    w.append(s);
+  }
+  s.time += 1;
+  const std::string message = thrownMessage<std::invalid_argument>([&] { w.append(s); });
+  EXPECT_NE(message.find("frame 4096 is one more than the 4096 frames this file holds"), std::string::npos) << message;
+  w.close();
+  const tinygltf::Model m = loadGlb(path);
+  ASSERT_EQ(m.animations.size(), 1u);
+  EXPECT_EQ(m.accessors.at(static_cast<std::size_t>(m.animations[0].samplers.at(0).output)).count,
+            static_cast<std::size_t>(kGltfMaxFrames * (kGltfMaxFrames - 1)));
+  EXPECT_LT(fs::file_size(path), 80u << 20);
+  fs::remove(path);
+}
+#endif  // WEFT_TEST_GLTF
 
 }  // namespace
 }  // namespace weft::test

@@ -12,6 +12,7 @@ packages=(
   libcli11-dev                     # CLI11: command-line parsing for `weft`
   nlohmann-json3-dev               # JSON output of `weft run --json`
   libassimp-dev                    # assimp: mesh import (OBJ, 3DS, ...) for weft::io
+  libtinygltf-dev                  # tinygltf (its header): glTF frames of `weft run --format gltf`, weft::io
   libboost-dev                     # Boost.Odeint (header-only): test-only cross-check of rk4/rk45
   python3-matplotlib               # plots of `weft study` (run with /usr/bin/python3)
   clang-14 libclang-rt-14-dev      # tools/fuzz.sh: clang++-14 and its libFuzzer runtime (-fsanitize=fuzzer)

@@ -155,8 +155,9 @@ int main(int argc, char** argv) {
                   "(chunks cut at the time of impact, taken back when too deep)")
       ->check(CLI::IsMember({"speculative", "rollback"}));
   CLI::Option* out = cmd->add_option("--out", run.out, "Write frames into this directory (created)");
-  cmd->add_option("--format", run.format, "Frame format: obj | ply | cache (one frames.wcache); default obj")
-      ->check(CLI::IsMember({"obj", "ply", "cache"}))
+  cmd->add_option("--format", run.format,
+                  "Frame format: obj | ply | cache (one frames.wcache) | gltf (one animated run.glb); default obj")
+      ->check(CLI::IsMember({"obj", "ply", "cache", "gltf"}))
       ->needs(out);
   CLI::Option* every =
       cmd->add_option("--every", run.every,

@@ -19,6 +19,7 @@
 #include <stdexcept>
 
 #include "process_memory.hpp"
+#include "weft/io/gltf.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
@@ -83,23 +84,35 @@ std::string workLine(const weft::StepWork& w, std::int64_t steps) {
 }
 
 /// Writes the frames of `weft run --out DIR`: one OBJ or PLY file per frame, or all
-/// frames into DIR/frames.wcache.
+/// frames into DIR/frames.wcache, or into one animated DIR/run.glb.
 template <class S>
 class FrameSink {
  public:
-  FrameSink(const weft::OutputSpec& o, const weft::Model<S>& model) : dir_(o.directory), format_(o.format) {
+  /// `scene` names the scene in messages (and the glTF object); `steps` is the run's length.
+  FrameSink(const weft::OutputSpec& o, const weft::Model<S>& model, const std::string& scene, std::int64_t steps)
+      : dir_(o.directory), format_(o.format) {
+    if (format_ != "cache") topology_ = weft::frameTopology(model);
+    if (format_ == "gltf") checkGltf(o, model, scene, steps);
     std::error_code error;
     std::filesystem::create_directories(dir_, error);
     if (error) throw std::runtime_error("cannot create the output directory '" + dir_ + "': " + error.message());
-    if (format_ == "cache")
+    if (format_ == "cache") {
       cache_.emplace((std::filesystem::path(dir_) / "frames.wcache").string(), model.particleCount());
-    else
-      topology_ = weft::frameTopology(model);
+    } else if (format_ == "gltf") {
+      try {
+        gltf_.emplace((std::filesystem::path(dir_) / "run.glb").string(), model.particleCount(), topology_,
+                      weft::GltfOptions{scene});
+      } catch (const std::exception& e) {
+        throw std::runtime_error("--out " + dir_ + " --format gltf: " + e.what());
+      }
+    }
   }
 
   void write(const weft::State<S>& state) {
     if (cache_) {
       cache_->append(state);
+    } else if (gltf_) {
+      gltf_->append(state);
     } else {
       char name[32];
       std::snprintf(name, sizeof name, "frame_%06lld.%s", static_cast<long long>(written_), format_.c_str());
@@ -113,16 +126,37 @@ class FrameSink {
   }
   void close() {
     if (cache_) cache_->close();
+    if (gltf_) gltf_->close();
   }
   /// Continues a resumed run's numbering: frames 0 .. count - 1 are on disk already.
   void resumeAt(std::int64_t count) { written_ = count; }
   std::int64_t written() const { return written_; }
 
  private:
+  /// A glTF file holds a mesh with an animation: refused before the run when the scene has
+  /// no particles or the run would write more frames than one file holds.
+  void checkGltf(const weft::OutputSpec& o, const weft::Model<S>& model, const std::string& scene,
+                 std::int64_t steps) const {
+    if (model.particleCount() == 0)
+      throw std::invalid_argument("--format gltf: the scene '" + scene +
+                                  "' has no particles to write (rigid bodies are not exported to glTF)");
+    const std::int64_t frames = steps / o.every + 1;
+    const std::int64_t most = weft::gltfMaxFrames(model.particleCount(), topology_);
+    if (frames > most) {
+      std::ostringstream msg;
+      msg << "--format gltf --every " << o.every << ": " << frames << " frames of " << steps << " steps, more than the "
+          << most << " one glTF file of '" << scene << "' holds (" << model.particleCount() << " particles; at most "
+          << weft::kGltfMaxFrames << " frames, one morph target each, and 4 GiB)";
+      if (most > 1) msg << "; use --every " << (steps + most - 2) / (most - 1) << " or more";
+      throw std::invalid_argument(msg.str());
+    }
+  }
+
   std::string dir_;
   std::string format_;
   weft::FrameTopology topology_;
   std::optional<weft::FrameCacheWriter<S>> cache_;
+  std::optional<weft::GltfAnimationWriter<S>> gltf_;
   std::int64_t written_ = 0;
 };
 
@@ -286,10 +320,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // must come from the same scene and options: load refuses another model, precision or
   // integrator).
   if (o.resume) {
-    if (!output.directory.empty() && output.format == "cache")
+    if (!output.directory.empty() && (output.format == "cache" || output.format == "gltf"))
       throw std::runtime_error(
-          "--resume cannot append to a frame cache (--format cache): resume with obj or ply "
-          "frames, or without --out");
+          std::string("--resume cannot append to ") +
+          (output.format == "cache" ? "a frame cache (--format cache)" : "a glTF file (--format gltf)") +
+          ": resume with obj or ply frames, or without --out");
     sim.load(*o.resume);
     if (sim.stepCount() > steps)
       throw std::runtime_error("--resume: the checkpoint '" + *o.resume + "' is at step " +
@@ -301,7 +336,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   if (o.checkpoint) sim.save(*o.checkpoint);
   std::optional<FrameSink<S>> frames;
   if (!output.directory.empty()) {
-    frames.emplace(output, sim.model());
+    frames.emplace(output, sim.model(), spec.name, steps);
     if (o.resume)
       frames->resumeAt(sim.stepCount() / output.every + 1);
     else

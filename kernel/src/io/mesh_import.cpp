@@ -90,7 +90,7 @@ void checkPlyHeader(const std::string& path, NextLine nextLine) {
         first = false;
       } else if (startsWithToken(line, "end_header")) {
         if (badByte >= 0) {
-          char hex[8];
+          char hex[12];  // "0x" and up to 8 hex digits of an int, as far as the compiler can tell
           std::snprintf(hex, sizeof hex, "0x%02x", badByte);
           fail(path, std::string("PLY header has a byte that is not text (") + hex + " in line " +
                          std::to_string(badLine) + "): the file is damaged or not a PLY file");

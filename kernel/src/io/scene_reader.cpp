@@ -228,7 +228,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     const Json& j = root["output"];
     r.object(j, "output", {"directory", "format", "every"});
     if (j.contains("directory")) scene.output.directory = r.pathString(j, "output", "directory");
-    scene.output.format = r.choice(j, "output", "format", "obj", {"obj", "ply", "cache"});
+    scene.output.format = r.choice(j, "output", "format", "obj", {"obj", "ply", "cache", "gltf"});
     scene.output.every = r.integer(j, "output", "every", 1, 1, std::numeric_limits<std::int64_t>::max());
   }
   return scene;

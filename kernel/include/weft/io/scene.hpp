@@ -80,7 +80,7 @@ struct MeshObstacleSpec {
 
 struct OutputSpec {
   std::string directory;       // empty: no frames
-  std::string format = "obj";  // obj | ply | cache
+  std::string format = "obj";  // obj | ply | cache | gltf
   std::int64_t every = 1;      // a frame every this many steps (>= 1)
 };
 
