@@ -139,14 +139,19 @@ void BM_FoldStep(benchmark::State& st) {
   o.selfCollision.enabled = self;
   o.threads = static_cast<int>(st.range(2));
   Simulation<double> sim(accordion<double>(size, 0.006), o);
-  std::int64_t contacts = 0, steps = 0;
+  SelfCollisionStats total;
+  std::int64_t steps = 0;
   for (auto _ : st) {
     sim.setState(settled);
     if (!sim.step().ok()) st.SkipWithError("step failed");
-    contacts += sim.lastSelfCollision().contacts;
+    total += sim.lastSelfCollision();
     ++steps;
   }
-  st.counters["self_contacts"] = static_cast<double>(contacts) / static_cast<double>(std::max<std::int64_t>(1, steps));
+  const double per = 1.0 / static_cast<double>(std::max<std::int64_t>(1, steps));
+  st.counters["self_contacts"] = static_cast<double>(total.contacts) * per;
+  st.counters["passes"] = static_cast<double>(total.passes) * per;
+  st.counters["rebuilds"] = static_cast<double>(total.rebuilds) * per;
+  st.counters["tests"] = static_cast<double>(total.tests) * per;
 }
 BENCHMARK(BM_FoldStep)
     ->ArgsProduct({{64}, {0, 1}, {1, 2}})

@@ -397,6 +397,89 @@ void expectNeverIntersects(const HardScene& scene) {
   EXPECT_EQ(sim.totalSelfCollision().unresolved, 0);
 }
 
+/// One chunk of the self-collision pass on `built` moving by `shift` (m, the same for every
+/// particle), with flat regions culled or not: the candidates gathered and the pass's findings.
+template <class S>
+std::pair<Index, SelfCollisionStats> oneChunk(const ModelAndState<S>& built, bool cull, const Vec3<S>& shift,
+                                              Vec3Array<S>* x1Out = nullptr) {
+  Executor exec(2);
+  SelfCollisionOptions options;
+  options.enabled = true;
+  options.cullFlatRegions = cull;
+  SelfCollider<S> collider(built.model, options, built.state.x, exec);
+  const Vec3Array<S>& x0 = built.state.x;
+  Vec3Array<S> x1 = x0, v1 = built.state.v;
+  for (int a = 0; a < 3; ++a) x1.col(a).array() += shift[a];
+  const ScalarArray<S> w = ScalarArray<S>::Ones(built.model.particleCount());
+  const SelfCollisionStats stats = collider.resolve(x0, x1, v1, w, 1e-3, exec);
+  if (x1Out) *x1Out = x1;
+  return {collider.candidateCount(), stats};
+}
+
+TEST(SelfCollisionCulling, AFlatOrGentlyCurvedClothGathersNoCandidates) {
+  for (const bool curved : {false, true}) {
+    ModelAndState<double> built = makeFlag<double>(32);
+    if (curved)  // a quarter of a cylinder of radius 0.7 m: 82 degrees of normals
+      for (Index i = 0; i < built.model.particleCount(); ++i) {
+        const double z = static_cast<double>(i / 32) / 31, angle = z / 0.7;
+        built.state.x(i, 0) = static_cast<double>(i % 32) / 31;
+        built.state.x(i, 2) = 0.7 * std::sin(angle);
+        built.state.x(i, 1) = 0.7 * (1 - std::cos(angle));
+      }
+    const auto [culled, culledStats] = oneChunk(built, true, Vec3<double>(0, -2e-4, 0));
+    const auto [all, allStats] = oneChunk(built, false, Vec3<double>(0, -2e-4, 0));
+    EXPECT_EQ(culled, 0) << (curved ? "curved" : "flat");
+    EXPECT_GT(all, 0);
+    EXPECT_EQ(culledStats.contacts, 0);
+    EXPECT_EQ(allStats.contacts, 0);
+  }
+}
+
+TEST(SelfCollisionCulling, LayersOfOneOrTwoClothsAreNeverCulledAgainstEachOther) {
+  // Two flat cloths 3 mm apart (normals alike: one cone), and one cloth folded flat onto
+  // itself (a U of two layers 3 mm apart): each layer is flat, the pairs between layers
+  // are not, and the pass finds the same contacts and moves the cloth the same with
+  // culling as without.
+  for (const bool folded : {false, true}) {
+    ModelAndState<double> built;
+    if (folded) {
+      built = makeFlag<double>(33);
+      const double spacing = 1.0 / 32, r = 0.0015;
+      for (Index row = 0; row < 33; ++row) {
+        const double s = row * spacing;  // along the cloth; folded at s = 0.5 around a half circle
+        double y = 0, z = s;
+        if (s > 0.5) {
+          const double past = s - 0.5;
+          const double angle = std::min(past / r, M_PI);
+          z = 0.5 + r * std::sin(angle) - std::max(0.0, past - M_PI * r);
+          y = r - r * std::cos(angle);
+        }
+        for (Index c = 0; c < 33; ++c) {
+          built.state.x(row * 33 + c, 0) = c * spacing;
+          built.state.x(row * 33 + c, 1) = y;
+          built.state.x(row * 33 + c, 2) = z;
+        }
+      }
+    } else {
+      ModelBuilder<double> b;
+      ClothGridSpec spec = flagSpec(16);
+      spec.origin = {0, 0, 0};
+      addClothGrid(b, spec);
+      spec.origin = {0.5 * spec.spacing, 0.003, 0.5 * spec.spacing};
+      addClothGrid(b, spec);
+      built = b.build();
+    }
+    Vec3Array<double> culledX, allX;
+    const auto [culled, culledStats] = oneChunk(built, true, Vec3<double>(0, 0, 0), &culledX);
+    const auto [all, allStats] = oneChunk(built, false, Vec3<double>(0, 0, 0), &allX);
+    EXPECT_GT(culledStats.contacts, 0) << (folded ? "folded" : "two cloths");
+    EXPECT_LT(culled, all);
+    EXPECT_EQ(culledStats.contacts, allStats.contacts);
+    EXPECT_EQ(culledStats.vertexTriangle, allStats.vertexTriangle);
+    EXPECT_EQ(stateHash(State<double>{culledX, culledX, 0}), stateHash(State<double>{allX, allX, 0}));
+  }
+}
+
 TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInDouble) {
   for (const HardScene& s : kHardScenes) expectNeverIntersects<double>(s);
 }

@@ -461,6 +461,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       const weft::SelfCollisionStats& t = sim.totalSelfCollision();
       j["self_contacts"] = t.contacts;
       j["self_collision"] = {{"thickness", self->options().thickness},
+                             {"cull_flat_regions", self->options().cullFlatRegions},
                              {"passes", t.passes},
                              {"candidates", t.candidates},
                              {"tests", t.tests},

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "bvh_internal.hpp"
@@ -111,7 +113,8 @@ std::optional<ClosestTriangle<S>> TriangleBvh<S>::closestTriangle(const Vec3Arra
 template <class S>
 template <bool kSelf, bool kExact, bool kSkipShared>
 void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
-                               std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const {
+                               std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                               std::span<const std::uint8_t> skipWithin) const {
   using Task = std::array<Index, 2>;  // node references; in self queries {a, a} means "all pairs within a"
   out.clear();
   const TriangleBvh& A = *this;
@@ -119,14 +122,21 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
   if (A.empty() || B.empty()) return;
   if (kSelf && A.triangleCount() < 2) return;
   if (!kSelf && !A.rootBox_.overlaps(B.rootBox_)) return;
+  if (!skipWithin.empty() && skipWithin.size() != A.nodes_.size())
+    throw std::invalid_argument("TriangleBvh: skipWithin holds " + std::to_string(skipWithin.size()) + " flags for " +
+                                std::to_string(A.nodes_.size()) + " internal nodes");
+  // Whether the pairs within internal node q are wanted (self queries).
+  const std::uint8_t* skip = skipWithin.empty() ? nullptr : skipWithin.data();
+  const auto within = [skip](Index q) { return q >= 0 && (skip == nullptr || skip[q] == 0); };
+  if (kSelf && !within(0)) return;
 
   // Pushes the subtasks of a task that is not a pair of leaves: push(task, keep).
   const auto expand = [&](const Task& task, auto&& push) {
     const Index a = task[0], b = task[1];
     if (kSelf && a == b) {
       const BvhNode<S>& node = A.nodes_[static_cast<size_t>(a)];
-      push(Task{node.child[0], node.child[0]}, node.child[0] >= 0);
-      push(Task{node.child[1], node.child[1]}, node.child[1] >= 0);
+      push(Task{node.child[0], node.child[0]}, within(node.child[0]));
+      push(Task{node.child[1], node.child[1]}, within(node.child[1]));
       push(Task{node.child[0], node.child[1]}, overlap(node.box[0], node.box[1]));
     } else if (a >= 0 && b >= 0) {
       const BvhNode<S>& na = A.nodes_[static_cast<size_t>(a)];
@@ -311,9 +321,9 @@ void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>& out, BvhPairScratch& s
 }
 
 template <class S>
-void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch,
-                                          const Executor& exec) const {
-  pairQuery<true, false, false>(*this, nullptr, nullptr, out, scratch, exec);
+void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                                          std::span<const std::uint8_t> skipWithin) const {
+  pairQuery<true, false, false>(*this, nullptr, nullptr, out, scratch, exec, skipWithin);
 }
 
 template <class S>
@@ -331,8 +341,8 @@ void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>& x, std::vector<Tr
   template void TriangleBvh<S>::intersectingPairs(const TriangleBvh&, const Vec3Array<S>&, const Vec3Array<S>&,        \
                                                   std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const; \
   template void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const;         \
-  template void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&)     \
-      const;                                                                                                           \
+  template void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&,     \
+                                                     std::span<const std::uint8_t>) const;                             \
   template void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>&, std::vector<TrianglePair>&,                 \
                                                       BvhPairScratch&, const Executor&) const;
 WEFT_INSTANTIATE_QUERIES(float)

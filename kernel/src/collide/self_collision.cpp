@@ -4,6 +4,7 @@
 #include "weft/collide/self_collision.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -138,6 +139,31 @@ void orient(V& n, const V& gap0, const V& relativeMotion) {
   if (side < 0) n = -n;
 }
 
+/// The smallest cone holding two cones narrower than a half space (cos > 0), or a cone with
+/// cos <= 0 when that is a half space or more. Containment is decided on cosines; only a
+/// true merge takes angles.
+template <class Cone>
+Cone mergedCone(const Cone& a, const Cone& b) {
+  Cone wide{{0, 0, 1}, -1, 0};
+  if (!(a.cos > 0 && b.cos > 0)) return wide;
+  const V ua(a.axis[0], a.axis[1], a.axis[2]), ub(b.axis[0], b.axis[1], b.axis[2]);
+  const double cg = std::clamp(ua.dot(ub), -1.0, 1.0);
+  const V across = ua.cross(ub);
+  const double sg = across.norm();
+  // a holds b when angle(a, b) + half(b) <= half(a): cos(angle + half(b)) >= cos(half(a)).
+  if (cg * b.cos - sg * b.sin >= a.cos) return a;
+  if (cg * a.cos - sg * a.sin >= b.cos) return b;
+  const double angleA = std::atan2(a.sin, a.cos), angleB = std::atan2(b.sin, b.cos), gamma = std::atan2(sg, cg);
+  const double half = 0.5 * (angleA + angleB + gamma);
+  if (!(half < 0.5 * M_PI) || !(sg > 0)) return wide;
+  // The axis: a turned towards b by half - angleA, in the plane of the two.
+  const V towards = (ub - cg * ua) / sg;
+  const double turn = half - angleA;
+  const V axis = (std::cos(turn) * ua + std::sin(turn) * towards).normalized();
+  // (1e-12: rounding in the rotation; the cone is then a hair wider than the exact one.)
+  return {{axis[0], axis[1], axis[2]}, std::cos(half + 1e-12), std::sin(half + 1e-12)};
+}
+
 }  // namespace
 
 SelfCollisionStats& SelfCollisionStats::operator+=(const SelfCollisionStats& o) {
@@ -266,16 +292,179 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
     : model_(&model), options_(options) {
   validateSelfCollision(options_, model, x, "SelfCollisionOptions");
   skin_ = kSkin * options_.thickness;
-  if (model.triangleCount() > 0) {
+  const Index triangles = model.triangleCount();
+  if (options_.cullFlatRegions && triangles > 0) {
+    const Triangles& tr = model.triangles();
+    double shortest2 = std::numeric_limits<double>::infinity();
+    for (Index t = 0; t < triangles; ++t) {
+      const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
+      for (int k = 0; k < 3; ++k) {
+        const Index i = c[k], j = c[(k + 1) % 3];
+        double d2 = 0;
+        for (int a = 0; a < 3; ++a) {
+          const double d = static_cast<double>(x(i, a)) - static_cast<double>(x(j, a));
+          d2 += d * d;
+        }
+        shortest2 = std::min(shortest2, d2);
+      }
+    }
+    skin_ = std::min(skin_, kConeSkin * std::sqrt(shortest2));  // > 0: the thickness is below every altitude
+  }
+  if (triangles > 0) {
     (void)model.surfaceTopology();  // derived once per Model
-    bvh_.build(x, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+    // With flat regions culled, a grid's tree is built over its rows and columns, not over
+    // the positions it starts in: its nodes are then patches of the cloth even when it
+    // starts folded (a tree over folded layers pairs the layers' triangles first, and no
+    // node above the leaves is flat). The tree's boxes are refit at every gathering.
+    const auto& grid = model.grid();
+    if (options_.cullFlatRegions && grid && grid->width * grid->height == model.particleCount()) {
+      Vec3Array<S> layout(model.particleCount(), 3);
+      for (Index i = 0; i < model.particleCount(); ++i)
+        layout.row(i) << static_cast<S>(i % grid->width), static_cast<S>(i / grid->width), S(0);
+      bvh_.build(layout, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+    } else {
+      bvh_.build(x, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+    }
+    if (options_.cullFlatRegions && triangles > 1) {
+      findConnectedNodes();
+      flat_.assign(connected_.size(), 0);
+      cones_.resize(connected_.size());
+      leafCones_.resize(static_cast<size_t>(triangles));
+    }
   }
   frozen_.assign(static_cast<size_t>(model.particleCount()), 0);
   moved_.assign(static_cast<size_t>(model.particleCount()), 0);
-  skinLo_.resize(model.particleCount(), 3);
+  skinLo_.setZero(model.particleCount(), 3);  // (zero, not undefined: a checkpoint writes them)
+  skinHi_.setZero(model.particleCount(), 3);
   sweptLo_.resize(model.particleCount(), 3);
   sweptHi_.resize(model.particleCount(), 3);
-  skinHi_.resize(model.particleCount(), 3);
+  triangleLo_.resize(triangles, 3);
+  triangleHi_.resize(triangles, 3);
+}
+
+template <class S>
+void SelfCollider<S>::findConnectedNodes() {
+  const std::vector<BvhNode<S>>& nodes = bvh_.nodes();
+  const Index nodeCount = static_cast<Index>(nodes.size()), triangles = bvh_.triangleCount();
+  // Each node's last slot (its slots are a contiguous range; children follow their parent
+  // in pre-order, so a reverse sweep sees children first).
+  std::vector<Index> lastSlot(static_cast<size_t>(nodeCount));
+  for (Index q = nodeCount - 1; q >= 0; --q) {
+    const Index c = nodes[static_cast<size_t>(q)].child[1];
+    lastSlot[static_cast<size_t>(q)] = c < 0 ? ~c : lastSlot[static_cast<size_t>(c)];
+  }
+  std::vector<Index> slotOf(static_cast<size_t>(triangles));
+  for (Index s = 0; s < triangles; ++s) slotOf[static_cast<size_t>(bvh_.slotTriangle(s))] = s;
+  // Triangles sharing an edge: sort (edge, triangle) and join neighbours in the order.
+  const Triangles& tr = model_->triangles();
+  std::vector<std::pair<std::uint64_t, Index>> sides;
+  sides.reserve(3 * static_cast<size_t>(triangles));
+  for (Index t = 0; t < triangles; ++t) {
+    const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
+    for (int k = 0; k < 3; ++k) {
+      const auto lo = static_cast<std::uint64_t>(std::min(c[k], c[(k + 1) % 3]));
+      const auto hi = static_cast<std::uint64_t>(std::max(c[k], c[(k + 1) % 3]));
+      sides.emplace_back(lo << 32 | hi, t);
+    }
+  }
+  std::sort(sides.begin(), sides.end());
+  // Each edge joins its two triangles in their lowest common node. Bottom-up (reverse
+  // pre-order: a subtree before its root), a union-find over the slots counts the merges
+  // made in each node's subtree: the node is connected when its slots minus those merges
+  // leave one component.
+  std::vector<std::pair<Index, std::array<Index, 2>>> joins;  // (node, slots)
+  joins.reserve(sides.size());
+  for (size_t k = 1; k < sides.size(); ++k) {
+    if (sides[k].first != sides[k - 1].first) continue;
+    const Index s1 = slotOf[static_cast<size_t>(sides[k - 1].second)],
+                s2 = slotOf[static_cast<size_t>(sides[k].second)];
+    if (s1 == s2) continue;
+    Index q = 0;
+    for (;;) {
+      const Index left = nodes[static_cast<size_t>(q)].child[0];
+      const Index leftLast = left < 0 ? ~left : lastSlot[static_cast<size_t>(left)];
+      const bool first = s1 <= leftLast, second = s2 <= leftLast;
+      if (first != second) break;
+      q = first ? left : nodes[static_cast<size_t>(q)].child[1];  // (internal: the two slots differ)
+    }
+    joins.push_back({q, {s1, s2}});
+  }
+  std::sort(joins.begin(), joins.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Index> parent(static_cast<size_t>(triangles));
+  for (Index s = 0; s < triangles; ++s) parent[static_cast<size_t>(s)] = s;
+  const auto root = [&](Index s) {
+    while (parent[static_cast<size_t>(s)] != s) {
+      parent[static_cast<size_t>(s)] = parent[static_cast<size_t>(parent[static_cast<size_t>(s)])];
+      s = parent[static_cast<size_t>(s)];
+    }
+    return s;
+  };
+  std::vector<Index> components(static_cast<size_t>(nodeCount));  // in each node's subtree
+  connected_.assign(static_cast<size_t>(nodeCount), 0);
+  size_t next = 0;
+  for (Index q = nodeCount - 1; q >= 0; --q) {
+    Index count = 0;
+    for (const Index c : nodes[static_cast<size_t>(q)].child) count += c < 0 ? 1 : components[static_cast<size_t>(c)];
+    for (; next < joins.size() && joins[next].first == q; ++next) {
+      const Index a = root(joins[next].second[0]), b = root(joins[next].second[1]);
+      if (a == b) continue;
+      parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
+      --count;
+    }
+    components[static_cast<size_t>(q)] = count;
+    connected_[static_cast<size_t>(q)] = count == 1 ? 1 : 0;
+  }
+}
+
+template <class S>
+void SelfCollider<S>::findFlatRegions(const Executor& exec) {
+  const Index triangles = bvh_.triangleCount();
+  const Triangles& tr = model_->triangles();
+  // Leaf cones: the normal at the boxes' centres, widened by the most the corners can turn
+  // it anywhere in their boxes (|n' - n| <= |d1| |e2| + |e1| |d2| + |d1| |d2|).
+  exec.parallelFor(triangles, kVertexGrain, [&](Index begin, Index end) {
+    for (Index s = begin; s < end; ++s) {
+      const Index t = bvh_.slotTriangle(s);
+      const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
+      V centre[3];
+      double radius[3];
+      for (int k = 0; k < 3; ++k) {
+        double r2 = 0;
+        for (int a = 0; a < 3; ++a) {
+          const double lo = static_cast<double>(skinLo_(c[k], a)), hi = static_cast<double>(skinHi_(c[k], a));
+          centre[k][a] = 0.5 * (lo + hi);
+          r2 += 0.25 * (hi - lo) * (hi - lo);
+        }
+        radius[k] = std::sqrt(r2);
+      }
+      const V e1 = centre[1] - centre[0], e2 = centre[2] - centre[0];
+      const V n = e1.cross(e2);
+      const double length = n.norm(), d1 = radius[0] + radius[1], d2 = radius[0] + radius[2];
+      const double turn = d1 * e2.norm() + e1.norm() * d2 + d1 * d2;
+      Cone& cone = leafCones_[static_cast<size_t>(s)];
+      if (!(turn < length)) {  // (NaN too)
+        cone = {{0, 0, 1}, -1, 0};
+        continue;
+      }
+      const double sine = turn / length;
+      cone = {{n[0] / length, n[1] / length, n[2] / length}, std::sqrt(1 - sine * sine), sine};
+    }
+  });
+  // Node cones, children before parents: the axis bisects the children's, and the
+  // half-angle covers each child's cone about it. A node is flat when its cone is narrower
+  // than a half space and its triangles are connected.
+  const std::vector<BvhNode<S>>& nodes = bvh_.nodes();
+  const Index nodeCount = static_cast<Index>(nodes.size());
+  for (Index q = nodeCount - 1; q >= 0; --q) {
+    const BvhNode<S>& node = nodes[static_cast<size_t>(q)];
+    const Cone* child[2];
+    for (int k = 0; k < 2; ++k)
+      child[k] = node.child[k] < 0 ? &leafCones_[static_cast<size_t>(~node.child[k])]
+                                   : &cones_[static_cast<size_t>(node.child[k])];
+    Cone& cone = cones_[static_cast<size_t>(q)];
+    cone = mergedCone(*child[0], *child[1]);
+    flat_[static_cast<size_t>(q)] = connected_[static_cast<size_t>(q)] != 0 && cone.cos > 0;
+  }
 }
 
 template <class S>
@@ -309,92 +498,41 @@ void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
       }
   });
   bvh_.refitSwept(x0, x1, exec);  // margin: half the thickness + the skin
-  bvh_.selfOverlappingPairs(pairs_, scratch_, exec);
+  const bool cull = !flat_.empty();
+  if (cull) findFlatRegions(exec);
+  bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
+                            cull ? std::span<const std::uint8_t>(flat_) : std::span<const std::uint8_t>());
   ++stats.rebuilds;
   stats.candidates += static_cast<std::int64_t>(pairs_.size());
-  const Index count = static_cast<Index>(pairs_.size());
-  const Index blocks = Executor::blockCount(count, kGrain);
+  useCandidates();
+}
+
+template <class S>
+void SelfCollider<S>::useCandidates() {
+  const Index blocks = Executor::blockCount(static_cast<Index>(pairs_.size()), kGrain);
   if (static_cast<Index>(blocks_.size()) < blocks) blocks_.resize(static_cast<size_t>(blocks));
   blocksUsed_ = blocks;
-  const Triangles& tr = model_->triangles();
-  const SurfaceTopology& topo = model_->surfaceTopology();
-  const double thickness = options_.thickness;
-  // Whether the skin boxes of two primitives are farther apart than the thickness (then
-  // they cannot come that close while every vertex stays in its skin box).
-  const auto apart = [&](std::initializer_list<Index> first, std::initializer_list<Index> second) {
-    for (int a = 0; a < 3; ++a) {
-      double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
-      for (const Index i : first) {
-        lo1 = std::min(lo1, static_cast<double>(skinLo_(i, a)));
-        hi1 = std::max(hi1, static_cast<double>(skinHi_(i, a)));
-      }
-      for (const Index i : second) {
-        lo2 = std::min(lo2, static_cast<double>(skinLo_(i, a)));
-        hi2 = std::max(hi2, static_cast<double>(skinHi_(i, a)));
-      }
-      if (lo1 > hi2 + thickness || lo2 > hi1 + thickness) return true;
-    }
-    return false;
-  };
-  exec.parallelForBlocks(count, kGrain, [&](Index blockIndex, Index begin, Index end) {
-    std::vector<Candidate>& out = blocks_[static_cast<size_t>(blockIndex)].candidates;
-    out.clear();
-    for (Index pi = begin; pi < end; ++pi) {
-      const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
-      const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
-      const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
-      // Vertices owned by one triangle against the other.
-      for (int side = 0; side < 2; ++side) {
-        const Index owner = side == 0 ? pair.first : pair.second;
-        const Index* other = side == 0 ? tb : ta;
-        for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
-          const Index v = topo.ownedVertices.entries[k];
-          if (v == other[0] || v == other[1] || v == other[2]) continue;
-          if (apart({v}, {other[0], other[1], other[2]})) continue;
-          out.push_back({{v, other[0], other[1], other[2]}, true, false});
-        }
-      }
-      // Edges owned by one against edges owned by the other.
-      for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
-        const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
-        for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
-          const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
-          if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
-          if (apart({e[0], e[1]}, {f[0], f[1]})) continue;
-          out.push_back({{e[0], e[1], f[0], f[1]}, false, false});
-        }
-      }
-    }
-  });
+  pairHit_.assign(pairs_.size(), 0);
   candidatesValid_ = true;
 }
 
 template <class S>
-void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
-                             const Executor& exec, SelfCollisionStats& stats) {
-  if (!candidatesCover(x0, x1, exec)) {
-    gatherCandidates(x0, x1, exec, stats);
-    onlyMoved_ = false;  // new candidates: test them all
-  }
-  ++stats.passes;
+void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1,
+                                  const ScalarArray<S>& w, bool all, bool guard) {
+  Block& block = blocks_[static_cast<size_t>(blockIndex)];
+  block.contacts.clear();
+  block.tests = 0;
   const Index n = model_->particleCount();
   const double thickness = options_.thickness;
+  // (lo - hi) - thickness in S may round: boxes count as apart with a margin of a relative 1e-6.
+  const double apartBeyond = thickness * (1 + 1e-6);
+  const Triangles& tr = model_->triangles();
+  const SurfaceTopology& topo = model_->surfaceTopology();
   const S* c0[3] = {x0.data(), x0.data() + n, x0.data() + 2 * n};
   const S* c1[3] = {x1.data(), x1.data() + n, x1.data() + 2 * n};
-  const auto at = [&](Index i, V out[2]) {
-    out[0] = V(c0[0][i], c0[1][i], c0[2][i]);
-    out[1] = V(c1[0][i], c1[1][i], c1[2][i]);
-  };
-  // This chunk's swept box of every vertex: a candidate whose boxes are farther apart than
-  // the thickness is not advanced (most candidates of a folded cloth: the skin keeps
-  // candidates for boxes larger than the chunk's).
-  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
-    for (int a = 0; a < 3; ++a)
-      for (Index i = begin; i < end; ++i) {
-        sweptLo_(i, a) = std::min(x0(i, a), x1(i, a));
-        sweptHi_(i, a) = std::max(x0(i, a), x1(i, a));
-      }
-  });
+  const std::uint8_t* moved = moved_.data();
+  // A primitive pair (VT: split 1; EE: split 2) whose boxes over this chunk are farther
+  // apart than the thickness is not advanced.
   const auto apartNow = [&](const Index* v, int split) {
     for (int a = 0; a < 3; ++a) {
       S lo1 = sweptLo_(v[0], a), hi1 = sweptHi_(v[0], a), lo2 = sweptLo_(v[3], a), hi2 = sweptHi_(v[3], a);
@@ -407,57 +545,118 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
           hi2 = std::max(hi2, sweptHi_(v[i], a));
         }
       }
-      // (lo - hi) - thickness in S may round: compare with a margin of a relative 1e-6.
-      if (static_cast<double>(lo1) - static_cast<double>(hi2) > thickness * (1 + 1e-6) ||
-          static_cast<double>(lo2) - static_cast<double>(hi1) > thickness * (1 + 1e-6))
+      if (static_cast<double>(lo1) - static_cast<double>(hi2) > apartBeyond ||
+          static_cast<double>(lo2) - static_cast<double>(hi1) > apartBeyond)
         return true;
     }
     return false;
   };
-  const bool guard = guard_;
-  // After a response only the candidates it moved a vertex of (or that were in contact)
-  // can have changed; the others keep their answer (no contact).
-  const bool all = !onlyMoved_;
-  const std::uint8_t* moved = moved_.data();
-  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
-    for (Index k = kb; k < ke; ++k) {
-      Block& block = blocks_[static_cast<size_t>(k)];
-      block.contacts.clear();
-      block.tests = 0;
-      for (Candidate& cand : block.candidates) {
-        const Index* v = cand.vertex;
-        if (!(all || cand.hit || (moved[v[0]] | moved[v[1]] | moved[v[2]] | moved[v[3]]))) continue;
-        cand.hit = false;
-        if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) continue;
-        if (apartNow(v, cand.vertexTriangle ? 1 : 2)) continue;
-        ++block.tests;
-        V p[4][2];
-        for (int i = 0; i < 4; ++i) at(v[i], p[i]);
-        const auto query = [&](double threshold, double start) {
-          return cand.vertexTriangle ? vertexTriangleContact(p[0], p[1], p[2], p[3], threshold, start)
-                                     : edgeEdgeContact(p[0], p[1], p[2], p[3], threshold, start);
-        };
-        const PrimitiveContact hit = query(thickness, 0);
-        if (!hit.hit) continue;
-        cand.hit = true;
-        Contact c;
-        for (int i = 0; i < 4; ++i) {
-          c.vertex[i] = v[i];
-          c.weights[i] = hit.weights[i];
-        }
-        for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
-        c.vertexTriangle = cand.vertexTriangle;
-        c.guard = false;
-        if (guard) {
-          // The failsafe's threshold: a quarter of the thickness, or half the distance at the
-          // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
-          const double d0 = query(std::numeric_limits<double>::infinity(), 0).distance;
-          const double theta = std::min(0.25 * thickness, 0.5 * d0);
-          c.guard = theta > 0 && query(theta, hit.time).hit;
-        }
-        block.contacts.push_back(c);
+  // Advancement on one primitive pair; a contact goes to the block's list.
+  const auto test = [&](const Index(&v)[4], bool vertexTriangle) {
+    if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) return false;
+    if (apartNow(v, vertexTriangle ? 1 : 2)) return false;
+    ++block.tests;
+    V p[4][2];
+    for (int i = 0; i < 4; ++i) {
+      p[i][0] = V(c0[0][v[i]], c0[1][v[i]], c0[2][v[i]]);
+      p[i][1] = V(c1[0][v[i]], c1[1][v[i]], c1[2][v[i]]);
+    }
+    const auto query = [&](double threshold, double start) {
+      return vertexTriangle ? vertexTriangleContact(p[0], p[1], p[2], p[3], threshold, start)
+                            : edgeEdgeContact(p[0], p[1], p[2], p[3], threshold, start);
+    };
+    const PrimitiveContact hit = query(thickness, 0);
+    if (!hit.hit) return false;
+    Contact c;
+    for (int i = 0; i < 4; ++i) {
+      c.vertex[i] = v[i];
+      c.weights[i] = hit.weights[i];
+    }
+    for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
+    c.vertexTriangle = vertexTriangle;
+    c.guard = false;
+    if (guard) {
+      // The failsafe's threshold: a quarter of the thickness, or half the distance at the
+      // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
+      const double d0 = query(std::numeric_limits<double>::infinity(), 0).distance;
+      const double theta = std::min(0.25 * thickness, 0.5 * d0);
+      c.guard = theta > 0 && query(theta, hit.time).hit;
+    }
+    block.contacts.push_back(c);
+    return true;
+  };
+  const Index count = static_cast<Index>(pairs_.size());
+  const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
+  for (Index pi = begin; pi < end; ++pi) {
+    const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
+    const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
+    const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
+    // After a response only the pairs it moved a vertex of (or that were in contact) can
+    // have changed; the others keep their answer (no contact).
+    std::uint8_t& hit = pairHit_[static_cast<size_t>(pi)];
+    if (!(all || hit || (moved[ta[0]] | moved[ta[1]] | moved[ta[2]] | moved[tb[0]] | moved[tb[1]] | moved[tb[2]])))
+      continue;
+    hit = 0;
+    bool apart = false;
+    for (int a = 0; a < 3 && !apart; ++a)
+      apart = static_cast<double>(triangleLo_(pair.first, a)) - static_cast<double>(triangleHi_(pair.second, a)) >
+                  apartBeyond ||
+              static_cast<double>(triangleLo_(pair.second, a)) - static_cast<double>(triangleHi_(pair.first, a)) >
+                  apartBeyond;
+    if (apart) continue;  // (then so is every primitive pair of the two)
+    bool any = false;
+    // Vertices owned by one triangle against the other.
+    for (int side = 0; side < 2; ++side) {
+      const Index owner = side == 0 ? pair.first : pair.second;
+      const Index* other = side == 0 ? tb : ta;
+      for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
+        const Index v = topo.ownedVertices.entries[k];
+        if (v == other[0] || v == other[1] || v == other[2]) continue;
+        any = test({v, other[0], other[1], other[2]}, true) || any;
       }
     }
+    // Edges owned by one against edges owned by the other.
+    for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
+      const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
+      for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
+        const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
+        if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
+        any = test({e[0], e[1], f[0], f[1]}, false) || any;
+      }
+    }
+    hit = any ? 1 : 0;
+  }
+}
+
+template <class S>
+void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
+                             const Executor& exec, SelfCollisionStats& stats) {
+  if (!candidatesCover(x0, x1, exec)) {
+    gatherCandidates(x0, x1, exec, stats);
+    onlyMoved_ = false;  // new candidates: test them all
+  }
+  ++stats.passes;
+  const Index n = model_->particleCount();
+  // This chunk's box of every vertex and every triangle.
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        sweptLo_(i, a) = std::min(x0(i, a), x1(i, a));
+        sweptHi_(i, a) = std::max(x0(i, a), x1(i, a));
+      }
+  });
+  const Triangles& tr = model_->triangles();
+  exec.parallelFor(model_->triangleCount(), kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index t = begin; t < end; ++t) {
+        const Index i = tr.a[t], j = tr.b[t], k = tr.c[t];
+        triangleLo_(t, a) = std::min({sweptLo_(i, a), sweptLo_(j, a), sweptLo_(k, a)});
+        triangleHi_(t, a) = std::max({sweptHi_(i, a), sweptHi_(j, a), sweptHi_(k, a)});
+      }
+  });
+  const bool all = !onlyMoved_, guard = guard_;
+  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
+    for (Index k = kb; k < ke; ++k) detectBlock(k, x0, x1, w, all, guard);
   });
   for (Index k = 0; k < blocksUsed_; ++k) stats.tests += blocks_[static_cast<size_t>(k)].tests;
 }
@@ -573,6 +772,37 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
   }
   return stats;
+}
+
+template <class S>
+void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
+  out.section("SELF");
+  out.value(static_cast<std::uint8_t>(candidatesValid_ ? 1 : 0));
+  out.array(skinLo_);
+  out.array(skinHi_);
+  out.vector(pairs_);
+}
+
+template <class S>
+void SelfCollider<S>::loadCarry(ArchiveReader& in) {
+  in.section("SELF");
+  bool valid = false;
+  in.flag(valid, "the self-collision candidates' flag");
+  in.field(skinLo_, "the self-collision skin boxes (low)");
+  in.field(skinHi_, "the self-collision skin boxes (high)");
+  in.field(pairs_, "the self-collision candidates");
+  const Index triangles = model_->triangleCount();
+  for (size_t k = 0; k < pairs_.size(); ++k) {
+    const TrianglePair& p = pairs_[k];
+    if (!(p.first >= 0 && p.first < p.second && p.second < triangles) || (k > 0 && !(pairs_[k - 1] < p)))
+      in.fail("self-collision candidate " + std::to_string(k) + " (" + std::to_string(p.first) + ", " +
+              std::to_string(p.second) + ") is not a sorted pair of the model's " + std::to_string(triangles) +
+              " triangles");
+  }
+  if (!((skinLo_.array() <= skinHi_.array()).all() && skinLo_.allFinite() && skinHi_.allFinite()))
+    in.fail("the self-collision skin boxes are not finite boxes");
+  useCandidates();
+  candidatesValid_ = valid;
 }
 
 template <class S>

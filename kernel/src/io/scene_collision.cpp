@@ -16,8 +16,9 @@
 namespace weft::io_detail {
 
 void readSelfCollision(const Reader& r, const Json& j, const std::string& f, SelfCollisionOptions& o) {
-  r.object(j, f, {"thickness", "friction", "iterations"});
+  r.object(j, f, {"thickness", "friction", "iterations", "cull_flat_regions"});
   o.enabled = true;
+  o.cullFlatRegions = r.boolean(j, f, "cull_flat_regions", o.cullFlatRegions);
   o.thickness = r.anyNumber(j, f, "thickness", o.thickness);
   o.friction = r.anyNumber(j, f, "friction", o.friction);
   o.iterations = r.anyInt(j, f, "iterations", o.iterations);

@@ -12,6 +12,7 @@
 //   "SIMU" state (x, v, time), dt, status, step count, statistics, clock start, pin origins
 //   "INTG" the integrator's carry-over (Integrator::saveCarry)
 //   "RIGD" the rigid bodies (RigidWorld::saveCarry), when there are any
+//   "SELF" the self-collision candidates (SelfCollider::saveCarry), when self-collision is on
 //   "END "
 //   checksum                         u64, FNV-1a of every byte before it
 #include <cerrno>
@@ -114,6 +115,7 @@ std::string Simulation<S>::checkpoint() const {
   out.section("INTG");
   integrator_->saveCarry(out);
   if (rigid_) rigid_->saveCarry(out);
+  if (self_) self_->saveCarry(out);
   out.section("END ");
   const std::uint64_t checksum = fnv1a64(bytes.data(), bytes.size());
   out.value(checksum);
@@ -190,6 +192,7 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
     in.section("INTG");
     integrator_->loadCarry(in);
     if (rigid_) rigid_->loadCarry(in);
+    if (self_) self_->loadCarry(in);
     in.section("END ");
     if (in.remaining() != sizeof(std::uint64_t)) in.fail(std::to_string(in.remaining() - 8) + " bytes too many");
   } catch (...) {

@@ -92,6 +92,7 @@
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "weft/collide/geometry.hpp"
@@ -213,8 +214,11 @@ class TriangleBvh {
   void selfPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
   /// Pairs i < j of this BVH whose boxes overlap, those sharing a vertex included, sorted
   /// (the candidates of the self-collision pass, which also tests a vertex against the
-  /// triangles next to its own).
-  void selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
+  /// triangles next to its own). `skipWithin`, when not empty, holds one flag per internal
+  /// node (nodes() order): a set flag drops every pair with both triangles in that node's
+  /// subtree (the self-collision pass's flat regions), without visiting them.
+  void selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                            std::span<const std::uint8_t> skipWithin = {}) const;
   /// Pairs i < j sharing no vertex whose closed triangles intersect at x, sorted.
   void selfIntersectingPairs(const Vec3Array<S>& x, std::vector<TrianglePair>& out, BvhPairScratch& scratch,
                              const Executor& exec) const;
@@ -234,7 +238,8 @@ class TriangleBvh {
   void buildHierarchy(const Executor& exec);
   template <bool kSelf, bool kExact, bool kSkipShared = kSelf>
   void pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
-                 std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec) const;
+                 std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                 std::span<const std::uint8_t> skipWithin = {}) const;
 
   Index vertexCount_ = 0;
   S margin_ = 0;

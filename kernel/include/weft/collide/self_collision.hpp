@@ -10,17 +10,34 @@
 // on a straight line over the chunk, time s in [0, 1]:
 //
 //   candidates  The triangles' BVH (built once) is refit with swept boxes (x0 and x1,
-//               inflated by half the thickness plus a skin of half the thickness) and
-//               queried for overlapping triangle pairs, neighbours included. In a pair, each
-//               triangle tests only the vertices and edges it owns (the lowest-numbered
-//               triangle having them, Model::surfaceTopology), so every vertex-triangle (VT)
-//               and edge-edge (EE) pair is listed once; a primitive pair sharing a particle
-//               is skipped, and so is one whose boxes (with the skin) are farther apart than
-//               the thickness. The list is kept while every vertex's x0 and x1 stay inside
-//               its box (as molecular dynamics keeps Verlet lists): a cloth moving a few mm
-//               per step gathers anew every few steps, not every chunk. Each pass then skips
-//               the candidates whose boxes over this chunk (without the skin) are farther
-//               apart than the thickness, a few comparisons, before any distance.
+//               inflated by half the thickness plus a skin) and queried for overlapping
+//               triangle pairs, neighbours included: the candidates. The list is kept while
+//               every vertex's x0 and x1 stay inside its skin box (its box at the gathering,
+//               grown by the skin; as molecular dynamics keeps Verlet lists): a cloth moving
+//               less than the skin per step gathers anew every few steps, not every chunk.
+//               Each pass boxes every triangle over its chunk (without the skin) and skips
+//               the candidate pairs whose boxes are farther apart than the thickness; of the
+//               others, each triangle tests only the vertices and edges it owns (the
+//               lowest-numbered triangle having them, Model::surfaceTopology) against the
+//               other triangle, so every vertex-triangle (VT) and edge-edge (EE) pair is
+//               listed once; a primitive pair sharing a particle is skipped, and so is one
+//               whose chunk boxes are farther apart than the thickness.
+//   flat        Normal-cone culling (Provot 1997; Volino and Magnenat-Thalmann 1994), on by
+//   regions     default (SelfCollisionOptions::cullFlatRegions). A BVH node whose triangles
+//               are edge-connected (fixed at construction) and whose normals, for every
+//               position of the vertices inside their skin boxes, lie within less than 90
+//               degrees of one axis is a height field over the plane normal to that axis: it
+//               cannot touch itself, and its pairs are not gathered (the query does not even
+//               visit them). The cone is conservative: a triangle's normal at its boxes'
+//               centres, widened by the most the corners' moving anywhere in their boxes can
+//               turn it (|n' - n| <= |d1| |e2| + |e1| |d2| + |d1| |d2| for edges e and
+//               corner displacements d); a node's cone holds its children's. The skin is
+//               then small (5 % of the shortest edge, at most half the thickness), so that
+//               the cones stay narrow; with culling off it is half the thickness. What is
+//               assumed and not tested is Provot's second condition, that the region's
+//               boundary does not overlap itself in projection: a flat region wound into a
+//               spiral ramp within one BVH node (a patch a few triangles across) would be
+//               missed; the exact check (countSelfIntersections) is what proves a run.
 //   detection   Conservative advancement on the distance d(s) between the moving
 //               primitives. d is Lipschitz in s with the constant L = the largest relative
 //               displacement of a vertex of one primitive against a vertex of the other
@@ -74,6 +91,7 @@
 
 #include "weft/collide/bvh.hpp"
 #include "weft/collide/geometry.hpp"
+#include "weft/core/archive.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/core/types.hpp"
 #include "weft/model/model.hpp"
@@ -81,11 +99,13 @@
 namespace weft {
 
 struct SelfCollisionOptions {
-  bool enabled = false;      // off: the step has no self-collision pass at all
-  double thickness = 0.004;  // m (> 0): the distance kept between layers of cloth; keep it below
-                             // about half the cloth's shortest edge, or neighbours count as layers
-  double friction = 0.3;     // Coulomb coefficient of cloth on cloth (>= 0)
-  int iterations = 3;        // detection + response passes per chunk (1 .. 64) before the failsafe
+  bool enabled = false;         // off: the step has no self-collision pass at all
+  double thickness = 0.004;     // m (> 0): the distance kept between layers of cloth; keep it below
+                                // about half the cloth's shortest edge, or neighbours count as layers
+  double friction = 0.3;        // Coulomb coefficient of cloth on cloth (>= 0)
+  int iterations = 3;           // detection + response passes per chunk (1 .. 64) before the failsafe
+  bool cullFlatRegions = true;  // normal-cone culling of flat, connected regions (see the design note); off:
+                                // every pair of triangles whose boxes overlap is a candidate
 };
 
 /// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.
@@ -152,27 +172,36 @@ class SelfCollider {
                              double h, const Executor& exec);
 
   const SelfCollisionOptions& options() const { return options_; }
+  /// The skin, m (see the design note).
+  double skin() const { return skin_; }
+  /// Triangle pairs in the current candidate list.
+  Index candidateCount() const { return static_cast<Index>(pairs_.size()); }
+
+  /// Checkpoints: the candidate list and the skin boxes it was gathered for (a list gathered
+  /// at another time would cull other pairs, so a resumed run keeps this one).
+  void saveCarry(ArchiveWriter& out) const;
+  void loadCarry(ArchiveReader& in);
 
   static constexpr Index kGrain = 256;  // triangle pairs per detection block
 
  private:
-  struct Candidate {
-    Index vertex[4];  // VT: the vertex, then the triangle's corners; EE: one edge, then the other
-    bool vertexTriangle;
-    bool hit;  // in contact in the last pass
-  };
   struct Contact {
-    Index vertex[4];  // as the candidate's
+    Index vertex[4];  // VT: the vertex, then the triangle's corners; EE: one edge, then the other
     bool vertexTriangle;
     bool guard;  // also below the failsafe's threshold
     double weights[4];
     double normal[3];
   };
-  /// One block of kGrain triangle pairs: its candidates, and what the last pass found.
+  /// One block of kGrain candidate pairs: what the last pass found in it.
   struct Block {
-    std::vector<Candidate> candidates;
     std::vector<Contact> contacts;
     std::int64_t tests = 0;
+  };
+  /// A cone of directions: unit axis and the cosine and sine of its half-angle (cos <= 0:
+  /// half a sphere or more, no use for culling).
+  struct Cone {
+    double axis[3];
+    double cos, sin;
   };
   /// Whether every vertex's x0 and x1 lie in its skin box (then the candidates cover the chunk).
   bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
@@ -183,6 +212,17 @@ class SelfCollider {
   /// flags when guard_).
   void detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
               SelfCollisionStats& stats);
+  /// Sizes the blocks and flags for the candidate list in pairs_.
+  void useCandidates();
+  /// The triangle pairs of each block's range that may hold a contact in this chunk
+  /// (thickness filter, owned primitives, advancement) into the block's contacts.
+  void detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, bool all,
+                   bool guard);
+  /// Which internal nodes of the BVH are edge-connected (once, at construction).
+  void findConnectedNodes();
+  /// The normal cones of every BVH node for vertices anywhere in their skin boxes, and the
+  /// flat regions (flat_) among the connected nodes.
+  void findFlatRegions(const Executor& exec);
   /// Gauss-Seidel over the contacts found, in block order; returns how many.
   std::int64_t respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
                        SelfCollisionStats& stats);
@@ -191,19 +231,28 @@ class SelfCollider {
   /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
   /// chunk's, and kept while every vertex stays inside its box.
   static constexpr double kSkin = 0.5;
+  /// With flat regions culled, the skin is at most this share of the shortest triangle edge
+  /// (a corner moving 5 % of an edge turns a triangle's normal by at most ~25 degrees).
+  static constexpr double kConeSkin = 0.05;
 
   const Model<S>* model_;
   SelfCollisionOptions options_;
   TriangleBvh<S> bvh_;
   BvhPairScratch scratch_;
-  std::vector<TrianglePair> pairs_;
+  std::vector<TrianglePair> pairs_;    // the candidates: triangle pairs, sorted
+  std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
   std::vector<Block> blocks_;
   Index blocksUsed_ = 0;
   bool guard_ = false;
-  std::vector<std::uint8_t> frozen_;  // (n) stopped by the failsafe in this chunk
-  double skin_ = 0;                   // m
-  Vec3Array<S> skinLo_, skinHi_;      // (n x 3) each vertex's skin box
-  Vec3Array<S> sweptLo_, sweptHi_;    // (n x 3) each vertex's box over the chunk
+  std::vector<std::uint8_t> frozen_;      // (n) stopped by the failsafe in this chunk
+  double skin_ = 0;                       // m
+  Vec3Array<S> skinLo_, skinHi_;          // (n x 3) each vertex's skin box
+  Vec3Array<S> triangleLo_, triangleHi_;  // (triangles x 3) each triangle's box over the chunk
+  std::vector<std::uint8_t> connected_;   // (nodes) the node's triangles are edge-connected
+  std::vector<std::uint8_t> flat_;        // (nodes) a flat region at the last gathering: not queried
+  std::vector<Cone> cones_;               // (nodes) scratch of findFlatRegions
+  std::vector<Cone> leafCones_;           // (triangles, by slot) likewise
+  Vec3Array<S> sweptLo_, sweptHi_;        // (n x 3) each vertex's box over the chunk
   bool candidatesValid_ = false;
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round

@@ -178,7 +178,7 @@ class Simulation {
   std::string checkpoint() const;
   void restore(std::string_view bytes, const std::string& source = "memory");
   /// The format version of checkpoint files this build writes and reads.
-  static constexpr std::uint32_t kCheckpointFormat = 1;
+  static constexpr std::uint32_t kCheckpointFormat = 2;  // 2: the self-collision section
 
  private:
   std::shared_ptr<const Model<S>> model_;
