@@ -251,13 +251,12 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
     }
   }
   frozen_.assign(static_cast<size_t>(model.particleCount()), 0);
+  displacement_.assign(static_cast<size_t>(model.particleCount()), 0.0);
   moved_.assign(static_cast<size_t>(model.particleCount()), 0);
   skinLo_.setZero(model.particleCount(), 3);  // (zero, not undefined: a checkpoint writes them)
   skinHi_.setZero(model.particleCount(), 3);
-  sweptLo_.resize(model.particleCount(), 3);
-  sweptHi_.resize(model.particleCount(), 3);
-  triangleLo_.resize(triangles, 3);
-  triangleHi_.resize(triangles, 3);
+  sweptBox_.resize(static_cast<size_t>(model.particleCount()));
+  triangleBox_.resize(static_cast<size_t>(triangles));
 }
 
 template <class S>
@@ -311,10 +310,12 @@ void SelfCollider<S>::useCandidates() {
 
 template <class S>
 void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1,
-                                  const ScalarArray<S>& w, bool all, bool guard) {
+                                  const ScalarArray<S>& w, bool all) {
   Block& block = blocks_[static_cast<size_t>(blockIndex)];
   block.contacts.clear();
   block.tests = 0;
+  block.guards = 0;
+  block.margin = std::numeric_limits<double>::infinity();
   const Index n = model_->particleCount();
   const double thickness = options_.thickness;
   // (lo - hi) - thickness in S may round: boxes count as apart with a margin of a relative 1e-6.
@@ -326,16 +327,17 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   const std::uint8_t* moved = moved_.data();
   // A primitive pair (VT: split 1; EE: split 2) whose boxes over this chunk are farther
   // apart than the thickness is not advanced.
+  const Aabb<S>* box = sweptBox_.data();
   const auto apartNow = [&](const Index* v, int split) {
     for (int a = 0; a < 3; ++a) {
-      S lo1 = sweptLo_(v[0], a), hi1 = sweptHi_(v[0], a), lo2 = sweptLo_(v[3], a), hi2 = sweptHi_(v[3], a);
+      S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
       for (int i = 1; i < 3; ++i) {
         if (i < split) {
-          lo1 = std::min(lo1, sweptLo_(v[i], a));
-          hi1 = std::max(hi1, sweptHi_(v[i], a));
+          lo1 = std::min(lo1, box[v[i]].lo[a]);
+          hi1 = std::max(hi1, box[v[i]].hi[a]);
         } else {
-          lo2 = std::min(lo2, sweptLo_(v[i], a));
-          hi2 = std::max(hi2, sweptHi_(v[i], a));
+          lo2 = std::min(lo2, box[v[i]].lo[a]);
+          hi2 = std::max(hi2, box[v[i]].hi[a]);
         }
       }
       if (static_cast<double>(lo1) - static_cast<double>(hi2) > apartBeyond ||
@@ -367,14 +369,16 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     }
     for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
     c.vertexTriangle = vertexTriangle;
-    c.guard = false;
-    if (guard) {
-      // The failsafe's threshold: a quarter of the thickness, or half the distance at the
-      // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
-      const double d0 = query(std::numeric_limits<double>::infinity(), 0).distance;
-      const double theta = std::min(0.25 * thickness, 0.5 * d0);
-      c.guard = theta > 0 && query(theta, hit.time).hit;
-    }
+    // The failsafe's threshold: a quarter of the thickness, or half the distance at the
+    // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
+    // Below it from the first contact on: a guard. Not: the pair stays >= theta / 2 apart
+    // over the whole chunk (before the contact it stayed >= thickness / 2), the margin
+    // that lets resolve() stop early.
+    const double d0 = query(std::numeric_limits<double>::infinity(), 0).distance;
+    const double theta = std::min(0.25 * thickness, 0.5 * d0);
+    c.guard = theta > 0 && query(theta, hit.time).hit;
+    block.guards += c.guard ? 1 : 0;
+    block.margin = std::min(block.margin, theta > 0 ? 0.5 * theta : 0.0);
     block.contacts.push_back(c);
     return true;
   };
@@ -390,12 +394,12 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     if (!(all || hit || (moved[ta[0]] | moved[ta[1]] | moved[ta[2]] | moved[tb[0]] | moved[tb[1]] | moved[tb[2]])))
       continue;
     hit = 0;
+    const Aabb<S>& first = triangleBox_[static_cast<size_t>(pair.first)];
+    const Aabb<S>& second = triangleBox_[static_cast<size_t>(pair.second)];
     bool apart = false;
     for (int a = 0; a < 3 && !apart; ++a)
-      apart = static_cast<double>(triangleLo_(pair.first, a)) - static_cast<double>(triangleHi_(pair.second, a)) >
-                  apartBeyond ||
-              static_cast<double>(triangleLo_(pair.second, a)) - static_cast<double>(triangleHi_(pair.first, a)) >
-                  apartBeyond;
+      apart = static_cast<double>(first.lo[a]) - static_cast<double>(second.hi[a]) > apartBeyond ||
+              static_cast<double>(second.lo[a]) - static_cast<double>(first.hi[a]) > apartBeyond;
     if (apart) continue;  // (then so is every primitive pair of the two)
     bool any = false;
     // Vertices owned by one triangle against the other.
@@ -434,8 +438,8 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
   exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
     for (int a = 0; a < 3; ++a)
       for (Index i = begin; i < end; ++i) {
-        sweptLo_(i, a) = std::min(x0(i, a), x1(i, a));
-        sweptHi_(i, a) = std::max(x0(i, a), x1(i, a));
+        sweptBox_[static_cast<size_t>(i)].lo[a] = std::min(x0(i, a), x1(i, a));
+        sweptBox_[static_cast<size_t>(i)].hi[a] = std::max(x0(i, a), x1(i, a));
       }
   });
   const Triangles& tr = model_->triangles();
@@ -443,25 +447,25 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
     for (int a = 0; a < 3; ++a)
       for (Index t = begin; t < end; ++t) {
         const Index i = tr.a[t], j = tr.b[t], k = tr.c[t];
-        triangleLo_(t, a) = std::min({sweptLo_(i, a), sweptLo_(j, a), sweptLo_(k, a)});
-        triangleHi_(t, a) = std::max({sweptHi_(i, a), sweptHi_(j, a), sweptHi_(k, a)});
+        const Aabb<S>* box = sweptBox_.data();
+        triangleBox_[static_cast<size_t>(t)].lo[a] = std::min({box[i].lo[a], box[j].lo[a], box[k].lo[a]});
+        triangleBox_[static_cast<size_t>(t)].hi[a] = std::max({box[i].hi[a], box[j].hi[a], box[k].hi[a]});
       }
   });
-  const bool all = !onlyMoved_, guard = guard_;
+  const bool all = !onlyMoved_;
   exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
-    for (Index k = kb; k < ke; ++k) detectBlock(k, x0, x1, w, all, guard);
+    for (Index k = kb; k < ke; ++k) detectBlock(k, x0, x1, w, all);
   });
   for (Index k = 0; k < blocksUsed_; ++k) stats.tests += blocks_[static_cast<size_t>(k)].tests;
 }
 
 template <class S>
-std::int64_t SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
-                                      SelfCollisionStats& stats) {
+double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
+                                SelfCollisionStats& stats) {
   const double thickness = options_.thickness, mu = options_.friction;
-  std::int64_t contacts = 0;
+  std::fill(displacement_.begin(), displacement_.end(), 0.0);
   for (Index k = 0; k < blocksUsed_; ++k) {
     for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
-      ++contacts;
       ++stats.contacts;
       stats.vertexTriangle += c.vertexTriangle ? 1 : 0;
       const V n(c.normal[0], c.normal[1], c.normal[2]);
@@ -484,10 +488,15 @@ std::int64_t SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const 
           if (f == 0) continue;
           const Index j = c.vertex[i];
           moved_[static_cast<size_t>(j)] = 1;
+          double step2 = 0;
           for (int a = 0; a < 3; ++a) {
-            x1(j, a) = static_cast<S>(static_cast<double>(x1(j, a)) + f * dx[a]);
+            const S before = x1(j, a);
+            x1(j, a) = static_cast<S>(static_cast<double>(before) + f * dx[a]);
             v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + f * dv[a]);
+            const double d = static_cast<double>(x1(j, a)) - static_cast<double>(before);  // as stored
+            step2 += d * d;
           }
+          displacement_[static_cast<size_t>(j)] += std::sqrt(step2);
         }
       };
       const double push = std::max(0.0, thickness - s1);
@@ -502,7 +511,7 @@ std::int64_t SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const 
       apply(push * n + h * dvt, dvn * n + dvt);
     }
   }
-  return contacts;
+  return *std::max_element(displacement_.begin(), displacement_.end());
 }
 
 template <class S>
@@ -511,15 +520,26 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
   SelfCollisionStats stats;
   if (bvh_.triangleCount() < 2) return stats;
   for (int pass = 0;; ++pass) {
-    guard_ = pass == options_.iterations;
+    const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;
     detect(x0, x1, w, exec, stats);
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
-    bool any = false;
-    for (Index k = 0; k < blocksUsed_ && !any; ++k) any = !blocks_[static_cast<size_t>(k)].contacts.empty();
+    bool any = false, guards = false;
+    double margin = std::numeric_limits<double>::infinity();
+    for (Index k = 0; k < blocksUsed_; ++k) {
+      const Block& block = blocks_[static_cast<size_t>(k)];
+      any = any || !block.contacts.empty();
+      guards = guards || block.guards > 0;
+      margin = std::min(margin, block.margin);
+    }
     if (!any) return stats;  // no pair within the thickness / 2: nothing can intersect
-    if (!guard_) {
-      respond(x1, v1, w, h, stats);
+    if (!last) {
+      // Converged: no pair came within its failsafe threshold, so every pair stayed at
+      // least `margin` apart over the chunk, and the response moved no vertex by more than
+      // a quarter of that (a distance changes by at most twice the largest displacement):
+      // nothing intersects, and further passes would only move vertices by less.
+      const double moved = respond(x1, v1, w, h, stats);
+      if (!guards && 2 * moved < 0.5 * margin) return stats;
       continue;
     }
     break;
@@ -559,7 +579,6 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
       stats.unresolved += stuck;
       break;
     }
-    guard_ = true;
     onlyMoved_ = true;
     detect(x0, x1, w, exec, stats);
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});

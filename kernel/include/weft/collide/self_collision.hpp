@@ -64,7 +64,13 @@
 //               end positions too so a resting layer does not creep. Detection and response
 //               alternate up to `iterations` times; after a response only the candidates
 //               with a vertex it moved (or that were in contact) are advanced again.
-//   failsafe    The last detection also tests every pair against a much smaller threshold
+//   early stop  Every detection also tests each contact against the failsafe's threshold
+//               theta (below). When none comes below it, every pair is proven to stay at
+//               least m = the least theta / 2 apart over the chunk; if the response then
+//               moves no vertex by more than m / 4 (as stored), no distance falls by more
+//               than m / 2 and nothing can intersect: the chunk ends there. Resting layers,
+//               in contact in every pass and moved by a rounding error, take one pass.
+//   failsafe    The last detection's contacts are also tested against a much smaller threshold
 //               theta = min(thickness / 4, d(0) / 2) (d(0): the pair's distance at the chunk
 //               start). A pair found below it has all its free vertices stopped: they stay
 //               at x0 with zero velocity, the state they had at the start of the chunk.
@@ -196,6 +202,8 @@ class SelfCollider {
   struct Block {
     std::vector<Contact> contacts;
     std::int64_t tests = 0;
+    std::int64_t guards = 0;  // contacts below their failsafe threshold
+    double margin = 0;        // m: the least distance the contacts are proven to keep (theta / 2)
   };
   /// A cone of directions: unit axis and the cosine and sine of its half-angle (cos <= 0:
   /// half a sphere or more, no use for culling).
@@ -208,24 +216,23 @@ class SelfCollider {
   /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates.
   void gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                         SelfCollisionStats& stats);
-  /// Advancement on every candidate for the chunk x0 -> x1 into blocks_ (with the failsafe's
-  /// flags when guard_).
+  /// Advancement on every candidate for the chunk x0 -> x1 into blocks_, with the failsafe's
+  /// flags.
   void detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
               SelfCollisionStats& stats);
   /// Sizes the blocks and flags for the candidate list in pairs_.
   void useCandidates();
   /// The triangle pairs of each block's range that may hold a contact in this chunk
   /// (thickness filter, owned primitives, advancement) into the block's contacts.
-  void detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, bool all,
-                   bool guard);
+  void detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, bool all);
   /// Which internal nodes of the BVH are edge-connected (once, at construction).
   void findConnectedNodes();
   /// The normal cones of every BVH node for vertices anywhere in their skin boxes, and the
   /// flat regions (flat_) among the connected nodes.
   void findFlatRegions(const Executor& exec);
-  /// Gauss-Seidel over the contacts found, in block order; returns how many.
-  std::int64_t respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
-                       SelfCollisionStats& stats);
+  /// Gauss-Seidel over the contacts found, in block order; returns the largest
+  /// displacement of a vertex (m, as stored).
+  double respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h, SelfCollisionStats& stats);
 
   static constexpr Index kVertexGrain = 4096;
   /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
@@ -243,16 +250,16 @@ class SelfCollider {
   std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
   std::vector<Block> blocks_;
   Index blocksUsed_ = 0;
-  bool guard_ = false;
-  std::vector<std::uint8_t> frozen_;      // (n) stopped by the failsafe in this chunk
-  double skin_ = 0;                       // m
-  Vec3Array<S> skinLo_, skinHi_;          // (n x 3) each vertex's skin box
-  Vec3Array<S> triangleLo_, triangleHi_;  // (triangles x 3) each triangle's box over the chunk
-  std::vector<std::uint8_t> connected_;   // (nodes) the node's triangles are edge-connected
-  std::vector<std::uint8_t> flat_;        // (nodes) a flat region at the last gathering: not queried
-  std::vector<Cone> cones_;               // (nodes) scratch of findFlatRegions
-  std::vector<Cone> leafCones_;           // (triangles, by slot) likewise
-  Vec3Array<S> sweptLo_, sweptHi_;        // (n x 3) each vertex's box over the chunk
+  std::vector<std::uint8_t> frozen_;     // (n) stopped by the failsafe in this chunk
+  std::vector<double> displacement_;     // (n) m, moved by the current response pass
+  double skin_ = 0;                      // m
+  Vec3Array<S> skinLo_, skinHi_;         // (n x 3) each vertex's skin box
+  std::vector<Aabb<S>> triangleBox_;     // (triangles) each triangle's box over the chunk
+  std::vector<std::uint8_t> connected_;  // (nodes) the node's triangles are edge-connected
+  std::vector<std::uint8_t> flat_;       // (nodes) a flat region at the last gathering: not queried
+  std::vector<Cone> cones_;              // (nodes) scratch of findFlatRegions
+  std::vector<Cone> leafCones_;          // (triangles, by slot) likewise
+  std::vector<Aabb<S>> sweptBox_;        // (n) each vertex's box over the chunk (one per vertex: read by index)
   bool candidatesValid_ = false;
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
