@@ -9,6 +9,10 @@
 //       the advancement on each. Counters: triangle_pairs, tests (primitive pairs) per chunk.
 //   BM_SelfCollision_Cached<S>/size/threads   the same chunk again: the candidates cover it,
 //       so only the advancement runs.
+//   BM_SelfCollision_Culling_float/size/threads   the candidate pairs of one gathering on
+//       the flat cloth and on the accordion, with flat regions culled and without, and the
+//       share culled (counters); the time: a collider built and its first chunk run on
+//       the accordion, with culling.
 //   BM_FoldStep/size/self/threads             one step (double, RK4) of the accordion after it
 //       has settled 0.1 s on a floor, with and without self-collision (the state is reset
 //       before each step): what the pass costs in a step with resting layers.
@@ -110,6 +114,37 @@ WEFT_BENCHMARK_AS(BM_SelfCollision_Detect_float, sizesAndThreads, BM_SelfCollisi
 WEFT_BENCHMARK_AS(BM_SelfCollision_Detect_double, sizesAndThreads, BM_SelfCollision_Detect<double>);
 WEFT_BENCHMARK_AS(BM_SelfCollision_Cached_float, sizesAndThreads, BM_SelfCollision_Cached<float>);
 WEFT_BENCHMARK_AS(BM_SelfCollision_Cached_double, sizesAndThreads, BM_SelfCollision_Cached<double>);
+
+/// The share of candidate pairs that culling flat regions removes, on the flat cloth and on
+/// the accordion: one gathering each with culling on and off (counters; the time is the
+/// accordion's collider built and its first chunk, with culling).
+template <class S>
+void BM_SelfCollision_Culling(benchmark::State& st) {
+  const Index size = static_cast<Index>(st.range(0));
+  Executor exec(static_cast<int>(st.range(1)));
+  const auto gather = [&](const ModelAndState<S>& built, bool cull) {
+    SelfCollisionOptions options;
+    options.enabled = true;
+    options.cullFlatRegions = cull;
+    SelfCollider<S> collider(built.model, options, built.state.x, exec);
+    Vec3Array<S> x1 = built.state.x, v1 = built.state.v;
+    x1.col(1).array() -= S(1e-4);
+    const ScalarArray<S> w = ScalarArray<S>::Ones(built.model.particleCount());
+    (void)collider.resolve(built.state.x, x1, v1, w, 1e-4, exec);
+    return static_cast<double>(collider.candidateCount());
+  };
+  const ModelAndState<S> flat = makeFlag<S>(size), folded = accordion<S>(size);
+  for (auto _ : st) benchmark::DoNotOptimize(gather(folded, true));
+  const double flatAll = gather(flat, false), flatCulled = gather(flat, true);
+  const double foldedAll = gather(folded, false), foldedCulled = gather(folded, true);
+  st.counters["flat_pairs_all"] = flatAll;
+  st.counters["flat_pairs_culled"] = flatCulled;
+  st.counters["folded_pairs_all"] = foldedAll;
+  st.counters["folded_pairs_culled"] = foldedCulled;
+  st.counters["flat_share_culled"] = flatAll > 0 ? 1 - flatCulled / flatAll : 0;
+  st.counters["folded_share_culled"] = foldedAll > 0 ? 1 - foldedCulled / foldedAll : 0;
+}
+WEFT_BENCHMARK_AS(BM_SelfCollision_Culling_float, sizesAndThreads, BM_SelfCollision_Culling<float>);
 
 /// The accordion settled on a floor for 0.1 s with self-collision (cached per size).
 const State<double>& settledAccordion(Index size) {

@@ -292,6 +292,60 @@ TEST(SelfCollisionScene, BadSectionIsRefusedWithItsPath) {
   EXPECT_EQ(ok.simulation.selfCollision.thickness, 0.003);
 }
 
+TEST(SelfCollisionOptions, ParticleThicknessIsCheckedPerValueSizeAndTriangle) {
+  ModelAndState<double> flag = makeFlag<double>(9);  // 1 m: spacing 0.125 m, altitude 0.0884 m
+  const auto message = [&](const SelfCollisionOptions& o) {
+    try {
+      validateSelfCollision(o, flag.model, flag.state.x, "self_collision");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  SelfCollisionOptions o;
+  o.particleThickness.assign(81, 0.01);
+  EXPECT_EQ(message(o), "accepted");
+  o.particleThickness[40] = -1;
+  EXPECT_NE(message(o).find("self_collision.particleThickness[40] must be finite and > 0 (m), got -1"),
+            std::string::npos)
+      << message(o);
+  o.particleThickness.assign(80, 0.01);
+  EXPECT_NE(message(o).find("particleThickness holds 80 values for 81 particles"), std::string::npos) << message(o);
+  o.particleThickness.assign(81, 0.01);
+  o.particleThickness[40] = 0.1;  // thicker than the triangles around particle 40 are high
+  EXPECT_NE(message(o).find("self_collision.particleThickness[40] = 0.1 m must be below the altitude"),
+            std::string::npos)
+      << message(o);
+  // From a scene file the field is the body's.
+  const auto sceneMessage = [](const std::string& bodies, const std::string& rest) {
+    try {
+      (void)assembleScene<double>(parseScene(R"({"bodies":[)" + bodies + R"(],"dt":0.001,"steps":1)" + rest + "}"));
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string lower = R"({"type":"cloth_grid","name":"lower","width":5,"height":5})";
+  const std::string self = R"(,"self_collision":{"thickness":0.01})";
+  EXPECT_EQ(sceneMessage(lower + R"(,{"type":"cloth_grid","name":"upper","width":5,"height":5,"origin":[0,0.1,0],)"
+                                 R"("self_collision_thickness":0.05})",
+                         self),
+            "accepted");
+  std::string m = sceneMessage(
+      lower + R"(,{"type":"cloth_grid","name":"upper","width":5,"height":5,"self_collision_thickness":0.5})", self);
+  EXPECT_NE(m.find("bodies[1] (upper).self_collision_thickness = 0.5 m must be below the altitude"), std::string::npos)
+      << m;
+  m = sceneMessage(R"({"type":"cloth_grid","width":5,"height":5,"self_collision_thickness":0.01})", "");
+  EXPECT_NE(m.find("self_collision_thickness: 0.01 m given, but the scene has no self_collision section"),
+            std::string::npos)
+      << m;
+  m = sceneMessage(R"({"type":"cloth_grid","width":5,"height":5,"self_collision_thickness":-2})", self);
+  EXPECT_NE(m.find("self_collision_thickness"), std::string::npos) << m;
+  EXPECT_NE(m.find("-2"), std::string::npos) << m;
+  m = sceneMessage(R"({"type":"rope","self_collision_thickness":0.01})", self);
+  EXPECT_NE(m.find("self_collision_thickness"), std::string::npos) << m;
+}
+
 // A thickness at or above the smallest altitude of the cloth's triangles would make
 // neighbours layers (and every neighbour a contact): refused before any step, by the
 // Simulation and by scene assembly, naming the field, the value and the triangle.
@@ -519,6 +573,41 @@ TEST(SelfCollisionScenes, OneAndTwoThreadsGiveTheSameBits) {
     EXPECT_GT(one.totalSelfCollision().contacts, 0) << name;
     EXPECT_EQ(stateHash(one.state()), stateHash(two.state())) << name;
     EXPECT_EQ(one.totalSelfCollision().contacts, two.totalSelfCollision().contacts) << name;
+  }
+}
+
+TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
+  // A small cloth dropped onto a larger one on the floor, as below, with the upper cloth's
+  // thickness 4 mm (as the lower's) or 12 mm: the layers rest the mean of the two apart.
+  for (const double upper : {0.004, 0.012}) {
+    ModelBuilder<double> b;
+    ClothGridSpec spec = flagSpec(12);
+    spec.origin = {0, 0.01, 0};
+    addClothGrid(b, spec);
+    const Index lower = b.particleCount();
+    spec.width = spec.height = 8;
+    spec.totalMass *= 64.0 / 144.0;
+    spec.origin = {2.5 * spec.spacing, 0.03, 1.5 * spec.spacing};
+    addClothGrid(b, spec);
+    SimulationOptions o;
+    o.dt = defaultTimeStep(BuiltinScene::Flag, 12);
+    o.effects.drag = 1e-3;
+    o.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+    o.selfCollision.enabled = true;
+    o.selfCollision.thickness = 0.004;
+    ModelAndState<double> built = b.build();
+    const Index n = built.model.particleCount();
+    o.selfCollision.particleThickness.assign(static_cast<size_t>(n), 0.004);
+    for (Index i = lower; i < n; ++i) o.selfCollision.particleThickness[static_cast<size_t>(i)] = upper;
+    Simulation<double> sim(std::move(built), o);
+    ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(1.0 / o.dt))).ok());
+    // The upper cloth lies over the lower one's middle; the lower one lies on the floor.
+    double lowerTop = 0, upperBottom = 1;
+    for (Index i = 0; i < lower; ++i) lowerTop = std::max(lowerTop, sim.state().x(i, 1));
+    for (Index i = lower; i < n; ++i) upperBottom = std::min(upperBottom, sim.state().x(i, 1));
+    const double gap = upperBottom - lowerTop, expected = 0.5 * (0.004 + upper);
+    EXPECT_NEAR(gap, expected, 0.15 * expected) << "upper thickness " << upper;
+    EXPECT_EQ(sim.selfIntersections(), 0);
   }
 }
 

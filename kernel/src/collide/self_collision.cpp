@@ -209,7 +209,11 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
                               const Executor& exec)
     : model_(&model), options_(options) {
   validateSelfCollision(options_, model, x, "SelfCollisionOptions");
-  skin_ = kSkin * options_.thickness;
+  thickness_.assign(static_cast<size_t>(model.particleCount()), options_.thickness);
+  if (!options_.particleThickness.empty()) thickness_ = options_.particleThickness;
+  const double thickest =
+      thickness_.empty() ? options_.thickness : *std::max_element(thickness_.begin(), thickness_.end());
+  skin_ = kSkin * thickest;
   const Index triangles = model.triangleCount();
   if (options_.cullFlatRegions && triangles > 0) {
     const Triangles& tr = model.triangles();
@@ -239,9 +243,9 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
       Vec3Array<S> layout(model.particleCount(), 3);
       for (Index i = 0; i < model.particleCount(); ++i)
         layout.row(i) << static_cast<S>(i % grid->width), static_cast<S>(i / grid->width), S(0);
-      bvh_.build(layout, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+      bvh_.build(layout, model.triangles(), exec, 0.5 * thickest + skin_);
     } else {
-      bvh_.build(x, model.triangles(), exec, 0.5 * options_.thickness + skin_);
+      bvh_.build(x, model.triangles(), exec, 0.5 * thickest + skin_);
     }
     if (options_.cullFlatRegions && triangles > 1) {
       findConnectedNodes();
@@ -317,9 +321,10 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   block.guards = 0;
   block.margin = std::numeric_limits<double>::infinity();
   const Index n = model_->particleCount();
-  const double thickness = options_.thickness;
+  // A pair keeps the mean of its two cloths' thicknesses (the thickness when there is one).
+  const double* th = thickness_.data();
   // (lo - hi) - thickness in S may round: boxes count as apart with a margin of a relative 1e-6.
-  const double apartBeyond = thickness * (1 + 1e-6);
+  constexpr double kApart = 1 + 1e-6;
   const Triangles& tr = model_->triangles();
   const SurfaceTopology& topo = model_->surfaceTopology();
   const S* c0[3] = {x0.data(), x0.data() + n, x0.data() + 2 * n};
@@ -328,7 +333,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // A primitive pair (VT: split 1; EE: split 2) whose boxes over this chunk are farther
   // apart than the thickness is not advanced.
   const Aabb<S>* box = sweptBox_.data();
-  const auto apartNow = [&](const Index* v, int split) {
+  const auto apartNow = [&](const Index* v, int split, double apartBeyond) {
     for (int a = 0; a < 3; ++a) {
       S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
       for (int i = 1; i < 3; ++i) {
@@ -349,7 +354,8 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // Advancement on one primitive pair; a contact goes to the block's list.
   const auto test = [&](const Index(&v)[4], bool vertexTriangle) {
     if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) return false;
-    if (apartNow(v, vertexTriangle ? 1 : 2)) return false;
+    const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
+    if (apartNow(v, vertexTriangle ? 1 : 2, thickness * kApart)) return false;
     ++block.tests;
     V p[4][2];
     for (int i = 0; i < 4; ++i) {
@@ -369,6 +375,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     }
     for (int i = 0; i < 3; ++i) c.normal[i] = hit.normal[i];
     c.vertexTriangle = vertexTriangle;
+    c.thickness = thickness;
     // The failsafe's threshold: a quarter of the thickness, or half the distance at the
     // start of the chunk (a query at an infinite threshold stops at s = 0 and gives it).
     // Below it from the first contact on: a guard. Not: the pair stays >= theta / 2 apart
@@ -396,6 +403,8 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     hit = 0;
     const Aabb<S>& first = triangleBox_[static_cast<size_t>(pair.first)];
     const Aabb<S>& second = triangleBox_[static_cast<size_t>(pair.second)];
+    const double apartBeyond =
+        0.5 * (std::max({th[ta[0]], th[ta[1]], th[ta[2]]}) + std::max({th[tb[0]], th[tb[1]], th[tb[2]]})) * kApart;
     bool apart = false;
     for (int a = 0; a < 3 && !apart; ++a)
       apart = static_cast<double>(first.lo[a]) - static_cast<double>(second.hi[a]) > apartBeyond ||
@@ -462,7 +471,7 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
 template <class S>
 double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
                                 SelfCollisionStats& stats) {
-  const double thickness = options_.thickness, mu = options_.friction;
+  const double mu = options_.friction;
   std::fill(displacement_.begin(), displacement_.end(), 0.0);
   for (Index k = 0; k < blocksUsed_; ++k) {
     for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
@@ -499,7 +508,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
           displacement_[static_cast<size_t>(j)] += std::sqrt(step2);
         }
       };
-      const double push = std::max(0.0, thickness - s1);
+      const double push = std::max(0.0, c.thickness - s1);
       const double vn = vr.dot(n);
       const double dvn = vn < 0 ? -vn : 0.0;
       // Friction: the tangential relative velocity, reduced by at most mu x the normal change.

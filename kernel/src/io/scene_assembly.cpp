@@ -136,11 +136,40 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
     out.meshReports.push_back(m.meshFile + " (obstacle): " + report.summary());
     out.options.collision.meshes.push_back(std::move(obstacle));
   }
+  // Thicknesses per cloth: each body's own for its particles, the section's for the others.
+  const auto bodyEnd = [&](size_t k) {
+    return k + 1 < scene.bodies.size() ? out.firstParticle[k + 1] : out.built.model.particleCount();
+  };
+  const auto bodyField = [&](size_t k) {
+    return "bodies[" + std::to_string(k) + "]" +
+           (scene.bodies[k].name.empty() ? std::string() : " (" + scene.bodies[k].name + ")") +
+           ".self_collision_thickness";
+  };
+  for (size_t k = 0; k < scene.bodies.size(); ++k) {
+    if (!scene.bodies[k].selfCollisionThickness) continue;
+    const double t = *scene.bodies[k].selfCollisionThickness;
+    if (!out.options.selfCollision.enabled)
+      throw SceneError(scene.name + ": " + bodyField(k) + ": " + fmt(t) +
+                       " m given, but the scene has no self_collision section");
+    if (!(std::isfinite(t) && t > 0))
+      throw SceneError(scene.name + ": " + bodyField(k) + ": must be finite and > 0 (m), got " + fmt(t));
+    std::vector<double>& perParticle = out.options.selfCollision.particleThickness;
+    if (perParticle.empty())
+      perParticle.assign(static_cast<size_t>(out.built.model.particleCount()), out.options.selfCollision.thickness);
+    for (Index i = out.firstParticle[k]; i < bodyEnd(k); ++i) perParticle[static_cast<size_t>(i)] = t;
+  }
+  const auto thicknessField = [&](Index particle) {
+    for (size_t k = 0; k < scene.bodies.size(); ++k)
+      if (particle >= out.firstParticle[k] && particle < bodyEnd(k))
+        return scene.bodies[k].selfCollisionThickness ? bodyField(k) : std::string("self_collision.thickness");
+    return std::string("self_collision.thickness");
+  };
   try {
     validateCollision(out.options.collision, "collision");
     validateRigidOptions(out.options.rigid);
     if (out.options.selfCollision.enabled)
-      validateSelfCollision(out.options.selfCollision, out.built.model, out.built.state.x, "self_collision");
+      validateSelfCollision(out.options.selfCollision, out.built.model, out.built.state.x, "self_collision",
+                            thicknessField);
   } catch (const std::exception& e) {
     throw SceneError(scene.name + ": " + e.what());
   }

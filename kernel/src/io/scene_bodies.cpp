@@ -108,7 +108,8 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     b.kind = BodyKind::ClothGrid;
     r.object(j, f,
              {"type", "name", "width", "height", "origin", "row_axis", "column_axis", "spacing", "total_mass",
-              "particle_mass", "materials", "shear_springs", "bend_springs", "pins", "velocity"});
+              "particle_mass", "materials", "shear_springs", "bend_springs", "pins", "velocity",
+              "self_collision_thickness"});
     ClothGridSpec& s = b.grid;
     s.width = static_cast<Index>(r.integer(j, f, "width", s.width, 2, 1 << 15));
     s.height = static_cast<Index>(r.integer(j, f, "height", s.height, 2, 1 << 15));
@@ -142,7 +143,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     b.kind = BodyKind::ClothMesh;
     r.object(j, f,
              {"type", "name", "mesh", "weld_tolerance", "scale", "translate", "total_mass", "areal_density",
-              "materials", "bend_springs", "pins", "velocity"});
+              "materials", "bend_springs", "pins", "velocity", "self_collision_thickness"});
     if (!j.contains("mesh")) r.fail(Reader::join(f, "mesh"), "is required: the path of the mesh file");
     b.meshFile = readMeshFile(r, j, f, baseDirectory);
     b.clean.weldTolerance = r.number(j, f, "weld_tolerance", b.clean.weldTolerance, 0, true, " m");
@@ -158,6 +159,8 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     readMaterials(r, j, f, s.structural, nullptr, s.bend);
   }
   b.velocity = r.vector(j, f, "velocity", b.velocity);
+  if (b.kind != BodyKind::Rope && j.contains("self_collision_thickness"))
+    b.selfCollisionThickness = r.number(j, f, "self_collision_thickness", 0.0, 0, false, " m");
   b.pins = readPins(r, j, f, geometry ? &*geometry : nullptr);
   return b;
 }

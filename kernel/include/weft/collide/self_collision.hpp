@@ -93,6 +93,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "weft/collide/bvh.hpp"
@@ -105,13 +107,15 @@
 namespace weft {
 
 struct SelfCollisionOptions {
-  bool enabled = false;         // off: the step has no self-collision pass at all
-  double thickness = 0.004;     // m (> 0): the distance kept between layers of cloth; keep it below
-                                // about half the cloth's shortest edge, or neighbours count as layers
-  double friction = 0.3;        // Coulomb coefficient of cloth on cloth (>= 0)
-  int iterations = 3;           // detection + response passes per chunk (1 .. 64) before the failsafe
-  bool cullFlatRegions = true;  // normal-cone culling of flat, connected regions (see the design note); off:
-                                // every pair of triangles whose boxes overlap is a candidate
+  bool enabled = false;                   // off: the step has no self-collision pass at all
+  double thickness = 0.004;               // m (> 0): the distance kept between layers of cloth; keep it below
+                                          // about half the cloth's shortest edge, or neighbours count as layers
+  double friction = 0.3;                  // Coulomb coefficient of cloth on cloth (>= 0)
+  int iterations = 3;                     // detection + response passes per chunk (1 .. 64) before the failsafe
+  std::vector<double> particleThickness;  // empty: every particle has `thickness`; else one per particle (m,
+                                          // > 0), a cloth's own: a pair of primitives keeps the mean of theirs
+  bool cullFlatRegions = true;            // normal-cone culling of flat, connected regions (see the design note); off:
+                                          // every pair of triangles whose boxes overlap is a candidate
 };
 
 /// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.
@@ -122,9 +126,13 @@ void validateSelfCollision(const SelfCollisionOptions& options, const char* wher
 /// a thicker layer would put neighbouring triangles in contact with each other at rest (and
 /// make every neighbour a contact: the pass's work would grow with the square of the
 /// triangles within the thickness). Throws std::invalid_argument naming the triangle.
+/// With particleThickness, a triangle's thickness is the largest of its corners', and
+/// `thicknessField(particle)`, when given, names the field a particle's thickness came from
+/// (a scene file's body) in the message.
 template <class S>
 void validateSelfCollision(const SelfCollisionOptions& options, const Model<S>& model, const Vec3Array<S>& x,
-                           const char* where);
+                           const char* where,
+                           const std::function<std::string(Index particle)>& thicknessField = nullptr);
 
 /// Self-collision work and findings, per step and summed.
 struct SelfCollisionStats {
@@ -194,7 +202,8 @@ class SelfCollider {
   struct Contact {
     Index vertex[4];  // VT: the vertex, then the triangle's corners; EE: one edge, then the other
     bool vertexTriangle;
-    bool guard;  // also below the failsafe's threshold
+    bool guard;        // also below the failsafe's threshold
+    double thickness;  // m, kept between the two
     double weights[4];
     double normal[3];
   };
@@ -252,6 +261,7 @@ class SelfCollider {
   Index blocksUsed_ = 0;
   std::vector<std::uint8_t> frozen_;     // (n) stopped by the failsafe in this chunk
   std::vector<double> displacement_;     // (n) m, moved by the current response pass
+  std::vector<double> thickness_;        // (n) m, each particle's cloth's thickness
   double skin_ = 0;                      // m
   Vec3Array<S> skinLo_, skinHi_;         // (n x 3) each vertex's skin box
   std::vector<Aabb<S>> triangleBox_;     // (triangles) each triangle's box over the chunk

@@ -63,6 +63,9 @@ struct BodySpec {
   MeshCleanOptions clean;  // kind == ClothMesh
   std::vector<PinSpec> pins;
   Vec3d velocity{0, 0, 0};  // initial velocity of the body's free particles, m/s
+  // A cloth's own thickness against itself and other cloths (m, > 0; self_collision's
+  // thickness when absent): SelfCollisionOptions::particleThickness for its particles.
+  std::optional<double> selfCollisionThickness;
 };
 
 /// A triangle mesh obstacle read from a mesh file when the scene is assembled: the file is
