@@ -576,35 +576,50 @@ TEST(SelfCollisionScenes, OneAndTwoThreadsGiveTheSameBits) {
   }
 }
 
+/// A smaller cloth (8 x 8) over a larger one (12 x 12) lying 1 cm above a floor, shifted by
+/// half a spacing so that no vertex is above another, the upper one `drop` m above the
+/// lower; self-collision on. `upperThickness` > 0: the upper cloth's own thickness.
+struct SmallOnLarge {
+  Simulation<double> sim;
+  Index lower;  // the upper cloth's first particle
+  SimulationOptions options;
+};
+SmallOnLarge smallOnLarge(double drop, double upperThickness = 0) {
+  ModelBuilder<double> b;
+  ClothGridSpec spec = flagSpec(12);
+  spec.origin = {0, 0.01, 0};
+  addClothGrid(b, spec);
+  const Index lower = b.particleCount();
+  spec.width = spec.height = 8;
+  spec.totalMass *= 64.0 / 144.0;
+  spec.origin = {2.5 * spec.spacing, 0.01 + drop, 1.5 * spec.spacing};
+  addClothGrid(b, spec);
+  SimulationOptions o;
+  o.dt = defaultTimeStep(BuiltinScene::Flag, 12);
+  o.effects.drag = 1e-3;
+  o.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
+  o.selfCollision.enabled = true;
+  ModelAndState<double> built = b.build();
+  if (upperThickness > 0) {
+    o.selfCollision.particleThickness.assign(static_cast<size_t>(built.model.particleCount()),
+                                             o.selfCollision.thickness);
+    for (Index i = lower; i < built.model.particleCount(); ++i)
+      o.selfCollision.particleThickness[static_cast<size_t>(i)] = upperThickness;
+  }
+  return {Simulation<double>(std::move(built), o), lower, o};
+}
+
 TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
-  // A small cloth dropped onto a larger one on the floor, as below, with the upper cloth's
-  // thickness 4 mm (as the lower's) or 12 mm: the layers rest the mean of the two apart.
+  // The upper cloth 4 mm thick (as the lower) or 12 mm: the layers rest the mean apart.
   for (const double upper : {0.004, 0.012}) {
-    ModelBuilder<double> b;
-    ClothGridSpec spec = flagSpec(12);
-    spec.origin = {0, 0.01, 0};
-    addClothGrid(b, spec);
-    const Index lower = b.particleCount();
-    spec.width = spec.height = 8;
-    spec.totalMass *= 64.0 / 144.0;
-    spec.origin = {2.5 * spec.spacing, 0.03, 1.5 * spec.spacing};
-    addClothGrid(b, spec);
-    SimulationOptions o;
-    o.dt = defaultTimeStep(BuiltinScene::Flag, 12);
-    o.effects.drag = 1e-3;
-    o.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
-    o.selfCollision.enabled = true;
-    o.selfCollision.thickness = 0.004;
-    ModelAndState<double> built = b.build();
-    const Index n = built.model.particleCount();
-    o.selfCollision.particleThickness.assign(static_cast<size_t>(n), 0.004);
-    for (Index i = lower; i < n; ++i) o.selfCollision.particleThickness[static_cast<size_t>(i)] = upper;
-    Simulation<double> sim(std::move(built), o);
-    ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(1.0 / o.dt))).ok());
+    SmallOnLarge scene = smallOnLarge(0.02, upper);
+    Simulation<double>& sim = scene.sim;
+    const Index n = sim.model().particleCount();
+    ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(1.0 / scene.options.dt))).ok());
     // The upper cloth lies over the lower one's middle; the lower one lies on the floor.
     double lowerTop = 0, upperBottom = 1;
-    for (Index i = 0; i < lower; ++i) lowerTop = std::max(lowerTop, sim.state().x(i, 1));
-    for (Index i = lower; i < n; ++i) upperBottom = std::min(upperBottom, sim.state().x(i, 1));
+    for (Index i = 0; i < scene.lower; ++i) lowerTop = std::max(lowerTop, sim.state().x(i, 1));
+    for (Index i = scene.lower; i < n; ++i) upperBottom = std::min(upperBottom, sim.state().x(i, 1));
     const double gap = upperBottom - lowerTop, expected = 0.5 * (0.004 + upper);
     EXPECT_NEAR(gap, expected, 0.15 * expected) << "upper thickness " << upper;
     EXPECT_EQ(sim.selfIntersections(), 0);
@@ -625,21 +640,10 @@ TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
   // upper cloth stays where it is. (Where an upper cloth overhangs the lower one's border
   // and drapes over it, particles near that border keep moving at a few cm/s: see
   // docs/collision.md.)
-  ModelBuilder<double> b;
-  ClothGridSpec spec = flagSpec(12);
-  spec.origin = {0, 0.01, 0};
-  addClothGrid(b, spec);
-  const Index lower = b.particleCount();
-  spec.width = spec.height = 8;
-  spec.totalMass *= 64.0 / 144.0;
-  spec.origin = {2.5 * spec.spacing, 0.02, 1.5 * spec.spacing};
-  addClothGrid(b, spec);
-  SimulationOptions o;
-  o.dt = defaultTimeStep(BuiltinScene::Flag, 12);
-  o.effects.drag = 1e-3;
-  o.collision.obstacles.push_back(Obstacle::plane({0, 0, 0}, {0, 1, 0}));
-  o.selfCollision.enabled = true;
-  Simulation<double> sim(b.build(), o);
+  SmallOnLarge scene = smallOnLarge(0.01);
+  Simulation<double>& sim = scene.sim;
+  const SimulationOptions& o = scene.options;
+  const Index lower = scene.lower;
   const Index n = sim.model().particleCount();
   ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(1.0 / o.dt))).ok());
   const auto upperCentre = [&] {
