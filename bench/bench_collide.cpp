@@ -37,7 +37,7 @@
 #include <vector>
 
 #ifdef WEFT_HAVE_EMBREE
-#include <embree3/rtcore.h>
+#include "bench_embree.hpp"
 #endif
 
 #include "bench_common.hpp"
@@ -194,79 +194,7 @@ void BM_Bvh_ClothSelfIntersections(benchmark::State& st) {
 }
 
 #ifdef WEFT_HAVE_EMBREE
-/// An Embree device and scene over one mesh (float vertices, interleaved and padded as
-/// Embree wants them), triangles or user geometry with the triangles' boxes.
-struct EmbreeMesh {
-  RTCDevice device = nullptr;
-  RTCScene scene = nullptr;
-  RTCGeometry geometry = nullptr;
-  std::vector<float> xyz;  // 3 per vertex + 1 of padding: Embree reads 16 bytes per vertex
-  std::vector<unsigned> indices;
-
-  EmbreeMesh(const Mesh<float>& m, int threads, bool user, RTCBuildQuality quality) {
-    const std::string config = "threads=" + std::to_string(threads);
-    device = rtcNewDevice(config.c_str());
-    const weft::Index nv = m.x.rows(), nt = m.triangles.count();
-    xyz.assign(static_cast<size_t>(3 * nv + 1), 0.0f);
-    for (weft::Index i = 0; i < nv; ++i)
-      for (int k = 0; k < 3; ++k) xyz[static_cast<size_t>(3 * i + k)] = m.x(i, k);
-    indices.resize(static_cast<size_t>(3 * nt));
-    for (weft::Index t = 0; t < nt; ++t) {
-      indices[static_cast<size_t>(3 * t)] = static_cast<unsigned>(m.triangles.a[t]);
-      indices[static_cast<size_t>(3 * t + 1)] = static_cast<unsigned>(m.triangles.b[t]);
-      indices[static_cast<size_t>(3 * t + 2)] = static_cast<unsigned>(m.triangles.c[t]);
-    }
-    scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(scene, quality == RTC_BUILD_QUALITY_REFIT ? RTC_BUILD_QUALITY_LOW : quality);
-    if (quality == RTC_BUILD_QUALITY_REFIT) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC);
-    if (user) {
-      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-      rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(nt));
-      rtcSetGeometryUserData(geometry, this);
-      rtcSetGeometryBoundsFunction(geometry, &EmbreeMesh::bounds, nullptr);
-    } else {
-      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, xyz.data(), 0,
-                                 3 * sizeof(float), static_cast<size_t>(nv));
-      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, indices.data(), 0,
-                                 3 * sizeof(unsigned), static_cast<size_t>(nt));
-    }
-    rtcSetGeometryBuildQuality(geometry, quality);
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometry(scene, geometry);
-  }
-  ~EmbreeMesh() {
-    rtcReleaseGeometry(geometry);
-    rtcReleaseScene(scene);
-    rtcReleaseDevice(device);
-  }
-  EmbreeMesh(const EmbreeMesh&) = delete;
-  EmbreeMesh& operator=(const EmbreeMesh&) = delete;
-
-  /// Marks the vertices changed and commits: a rebuild, or a refit with REFIT quality.
-  void commit() {
-    if (rtcGetGeometryUserData(geometry) == nullptr) rtcUpdateGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0);
-    rtcCommitGeometry(geometry);
-    rtcCommitScene(scene);
-  }
-
-  static void bounds(const RTCBoundsFunctionArguments* args) {
-    const auto* self = static_cast<const EmbreeMesh*>(args->geometryUserPtr);
-    const unsigned* corner = &self->indices[3 * static_cast<size_t>(args->primID)];
-    RTCBounds& b = *args->bounds_o;
-    b.lower_x = b.lower_y = b.lower_z = std::numeric_limits<float>::infinity();
-    b.upper_x = b.upper_y = b.upper_z = -std::numeric_limits<float>::infinity();
-    for (int k = 0; k < 3; ++k) {
-      const float* p = &self->xyz[3 * static_cast<size_t>(corner[k])];
-      b.lower_x = std::min(b.lower_x, p[0]);
-      b.lower_y = std::min(b.lower_y, p[1]);
-      b.lower_z = std::min(b.lower_z, p[2]);
-      b.upper_x = std::max(b.upper_x, p[0]);
-      b.upper_y = std::max(b.upper_y, p[1]);
-      b.upper_z = std::max(b.upper_z, p[2]);
-    }
-  }
-};
+using weftbench::EmbreeMesh;
 
 void BM_Peer_Embree_Build(benchmark::State& st) {
   const Mesh<float>& mesh = meshByIndex<float>(static_cast<int>(st.range(0)), st);
@@ -274,7 +202,7 @@ void BM_Peer_Embree_Build(benchmark::State& st) {
   const RTCBuildQuality quality = st.range(2) == 0 ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
   weft::Executor exec(threads);
   exec.run([&] {
-    EmbreeMesh e(mesh, threads, false, quality);
+    EmbreeMesh e(mesh.x, mesh.triangles, threads, false, quality);
     e.commit();
     for (auto _ : st) e.commit();
   });
@@ -287,7 +215,7 @@ void BM_Peer_Embree_Refit(benchmark::State& st) {
   const int threads = static_cast<int>(st.range(1));
   weft::Executor exec(threads);
   exec.run([&] {
-    EmbreeMesh e(mesh, threads, false, RTC_BUILD_QUALITY_REFIT);
+    EmbreeMesh e(mesh.x, mesh.triangles, threads, false, RTC_BUILD_QUALITY_REFIT);
     e.commit();
     for (auto _ : st) e.commit();
   });
@@ -301,8 +229,8 @@ void BM_Peer_Embree_ClothSphereOverlaps(benchmark::State& st) {
   std::vector<RTCCollision> found;
   std::mutex lock;
   exec.run([&] {
-    EmbreeMesh cloth(drapedCloth<float>(), threads, true, RTC_BUILD_QUALITY_MEDIUM);
-    EmbreeMesh ball(sphere<float>(32), threads, true, RTC_BUILD_QUALITY_MEDIUM);
+    EmbreeMesh cloth(drapedCloth<float>().x, drapedCloth<float>().triangles, threads, true, RTC_BUILD_QUALITY_MEDIUM);
+    EmbreeMesh ball(sphere<float>(32).x, sphere<float>(32).triangles, threads, true, RTC_BUILD_QUALITY_MEDIUM);
     cloth.commit();
     ball.commit();
     const auto collect = [](void* user, RTCCollision* collisions, unsigned count) {

@@ -13,6 +13,9 @@
 //       the flat cloth and on the accordion, with flat regions culled and without, and the
 //       share culled (counters); the time: a collider built and its first chunk run on
 //       the accordion, with culling.
+//   BM_Peer_Embree_SelfCollide/size/threads   (where Embree 3 is found) rtcCollide of the
+//       accordion with itself, boxes grown by half the thickness: the candidate listing of a
+//       peer, for the ratio (counters: candidates, pairs_i_lt_j).
 //   BM_FoldStep/size/self/threads             one step (double, RK4) of the accordion after it
 //       has settled 0.1 s on a floor, with and without self-collision (the state is reset
 //       before each step): what the pass costs in a step with resting layers.
@@ -25,6 +28,11 @@
 #include <string>
 
 #include "bench_common.hpp"
+#ifdef WEFT_HAVE_EMBREE
+#include <mutex>
+
+#include "bench_embree.hpp"
+#endif
 #include "weft/weft.hpp"
 
 namespace {
@@ -145,6 +153,45 @@ void BM_SelfCollision_Culling(benchmark::State& st) {
   st.counters["folded_share_culled"] = foldedAll > 0 ? 1 - foldedCulled / foldedAll : 0;
 }
 WEFT_BENCHMARK_AS(BM_SelfCollision_Culling_float, sizesAndThreads, BM_SelfCollision_Culling<float>);
+
+#ifdef WEFT_HAVE_EMBREE
+/// The peer: Embree's rtcCollide of the accordion against itself, its triangles as user
+/// geometry with boxes grown by half the thickness (so the pairs it lists are the pairs
+/// whose boxes come within the thickness, what weft's pass needs before culling): the
+/// candidate listing alone, on a committed scene.
+void BM_Peer_Embree_SelfCollide(benchmark::State& st) {
+  const Index size = static_cast<Index>(st.range(0));
+  const int threads = static_cast<int>(st.range(1));
+  Executor exec(threads);
+  const ModelAndState<float> built = accordion<float>(size);
+  std::vector<RTCCollision> found;
+  std::mutex lock;
+  exec.run([&] {
+    weftbench::EmbreeMesh cloth(built.state.x, built.model.triangles(), threads, true, RTC_BUILD_QUALITY_MEDIUM,
+                                0.5f * static_cast<float>(SelfCollisionOptions{}.thickness));
+    cloth.commit();
+    const auto collect = [](void* user, RTCCollision* collisions, unsigned count) {
+      auto* out = static_cast<std::pair<std::vector<RTCCollision>*, std::mutex*>*>(user);
+      std::lock_guard<std::mutex> guard(*out->second);
+      out->first->insert(out->first->end(), collisions, collisions + count);
+    };
+    std::pair<std::vector<RTCCollision>*, std::mutex*> sink{&found, &lock};
+    for (auto _ : st) {
+      found.clear();
+      rtcCollide(cloth.scene, cloth.scene, collect, &sink);
+    }
+  });
+  std::int64_t distinct = 0;
+  for (const RTCCollision& c : found) distinct += c.primID0 < c.primID1 ? 1 : 0;
+  st.counters["candidates"] = static_cast<double>(found.size());
+  st.counters["pairs_i_lt_j"] = static_cast<double>(distinct);
+}
+BENCHMARK(BM_Peer_Embree_SelfCollide)
+    ->ArgsProduct({{64, 128}, {1, 2}})
+    ->ArgNames({"size", "threads"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
+#endif
 
 /// The accordion settled on a floor for 0.1 s with self-collision (cached per size).
 const State<double>& settledAccordion(Index size) {
