@@ -145,12 +145,11 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
            (scene.bodies[k].name.empty() ? std::string() : " (" + scene.bodies[k].name + ")") +
            ".self_collision_thickness";
   };
-  for (size_t k = 0; k < scene.bodies.size(); ++k) {
+  // (Without self-collision a body's thickness has no use: a scene file is refused for it
+  // when read, a SceneSpec with the pass turned off ignores it.)
+  for (size_t k = 0; k < scene.bodies.size() && out.options.selfCollision.enabled; ++k) {
     if (!scene.bodies[k].selfCollisionThickness) continue;
     const double t = *scene.bodies[k].selfCollisionThickness;
-    if (!out.options.selfCollision.enabled)
-      throw SceneError(scene.name + ": " + bodyField(k) + ": " + fmt(t) +
-                       " m given, but the scene has no self_collision section");
     if (!(std::isfinite(t) && t > 0))
       throw SceneError(scene.name + ": " + bodyField(k) + ": must be finite and > 0 (m), got " + fmt(t));
     std::vector<double>& perParticle = out.options.selfCollision.particleThickness;

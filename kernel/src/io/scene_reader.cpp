@@ -195,6 +195,10 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   if (root.contains("collision"))
     readCollision(r, root["collision"], "collision", baseDirectory, o.collision, scene.meshObstacles);
   if (root.contains("self_collision")) readSelfCollision(r, root["self_collision"], "self_collision", o.selfCollision);
+  for (size_t k = 0; k < scene.bodies.size(); ++k)
+    if (scene.bodies[k].selfCollisionThickness && !o.selfCollision.enabled)
+      r.fail("bodies[" + std::to_string(k) + "].self_collision_thickness",
+             "needs a self_collision section (the thickness is self-collision's), got none");
   if (root.contains("rigid_bodies")) o.rigid = readRigidBodies(r, root["rigid_bodies"], "rigid_bodies");
   if (root.contains("integration")) {
     const Json& j = root["integration"];
