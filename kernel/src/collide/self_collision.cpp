@@ -301,6 +301,9 @@ void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
   ++stats.rebuilds;
   stats.candidates += static_cast<std::int64_t>(pairs_.size());
   useCandidates();
+  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
+    for (Index k = kb; k < ke; ++k) expandBlock(k);
+  });
 }
 
 template <class S>
@@ -310,6 +313,63 @@ void SelfCollider<S>::useCandidates() {
   blocksUsed_ = blocks;
   pairHit_.assign(pairs_.size(), 0);
   candidatesValid_ = true;
+}
+
+template <class S>
+void SelfCollider<S>::expandBlock(Index blockIndex) {
+  Block& block = blocks_[static_cast<size_t>(blockIndex)];
+  block.primitives.clear();
+  block.pairEnd.clear();
+  const Triangles& tr = model_->triangles();
+  const SurfaceTopology& topo = model_->surfaceTopology();
+  const double* th = thickness_.data();
+  // Whether the skin boxes of two primitives are farther apart than their thickness (then
+  // they cannot come that close while every vertex stays in its skin box).
+  const auto apart = [&](std::initializer_list<Index> first, std::initializer_list<Index> second) {
+    const double thickness = 0.5 * (th[*first.begin()] + th[*second.begin()]);
+    for (int a = 0; a < 3; ++a) {
+      double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
+      for (const Index i : first) {
+        lo1 = std::min(lo1, static_cast<double>(skinLo_(i, a)));
+        hi1 = std::max(hi1, static_cast<double>(skinHi_(i, a)));
+      }
+      for (const Index i : second) {
+        lo2 = std::min(lo2, static_cast<double>(skinLo_(i, a)));
+        hi2 = std::max(hi2, static_cast<double>(skinHi_(i, a)));
+      }
+      if (lo1 > hi2 + thickness || lo2 > hi1 + thickness) return true;
+    }
+    return false;
+  };
+  const Index count = static_cast<Index>(pairs_.size());
+  const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
+  for (Index pi = begin; pi < end; ++pi) {
+    const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
+    const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
+    const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
+    // Vertices owned by one triangle against the other.
+    for (int side = 0; side < 2; ++side) {
+      const Index owner = side == 0 ? pair.first : pair.second;
+      const Index* other = side == 0 ? tb : ta;
+      for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
+        const Index v = topo.ownedVertices.entries[k];
+        if (v == other[0] || v == other[1] || v == other[2]) continue;
+        if (apart({v}, {other[0], other[1], other[2]})) continue;
+        block.primitives.push_back({{v, other[0], other[1], other[2]}, true});
+      }
+    }
+    // Edges owned by one against edges owned by the other.
+    for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
+      const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
+      for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
+        const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
+        if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
+        if (apart({e[0], e[1]}, {f[0], f[1]})) continue;
+        block.primitives.push_back({{e[0], e[1], f[0], f[1]}, false});
+      }
+    }
+    block.pairEnd.push_back(static_cast<Index>(block.primitives.size()));
+  }
 }
 
 template <class S>
@@ -326,7 +386,6 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // (lo - hi) - thickness in S may round: boxes count as apart with a margin of a relative 1e-6.
   constexpr double kApart = 1 + 1e-6;
   const Triangles& tr = model_->triangles();
-  const SurfaceTopology& topo = model_->surfaceTopology();
   const S* c0[3] = {x0.data(), x0.data() + n, x0.data() + 2 * n};
   const S* c1[3] = {x1.data(), x1.data() + n, x1.data() + 2 * n};
   const std::uint8_t* moved = moved_.data();
@@ -352,7 +411,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     return false;
   };
   // Advancement on one primitive pair; a contact goes to the block's list.
-  const auto test = [&](const Index(&v)[4], bool vertexTriangle) {
+  const auto test = [&](const Index* v, bool vertexTriangle) {
     if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) return false;
     const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
     if (apartNow(v, vertexTriangle ? 1 : 2, thickness * kApart)) return false;
@@ -391,7 +450,8 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   };
   const Index count = static_cast<Index>(pairs_.size());
   const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
-  for (Index pi = begin; pi < end; ++pi) {
+  Index next = 0;  // the pair's first primitive in block.primitives
+  for (Index pi = begin; pi < end; next = block.pairEnd[static_cast<size_t>(pi - begin)], ++pi) {
     const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
     const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
     const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
@@ -411,24 +471,10 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
               static_cast<double>(second.lo[a]) - static_cast<double>(first.hi[a]) > apartBeyond;
     if (apart) continue;  // (then so is every primitive pair of the two)
     bool any = false;
-    // Vertices owned by one triangle against the other.
-    for (int side = 0; side < 2; ++side) {
-      const Index owner = side == 0 ? pair.first : pair.second;
-      const Index* other = side == 0 ? tb : ta;
-      for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
-        const Index v = topo.ownedVertices.entries[k];
-        if (v == other[0] || v == other[1] || v == other[2]) continue;
-        any = test({v, other[0], other[1], other[2]}, true) || any;
-      }
-    }
-    // Edges owned by one against edges owned by the other.
-    for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
-      const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
-      for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
-        const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
-        if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
-        any = test({e[0], e[1], f[0], f[1]}, false) || any;
-      }
+    const Index primitivesEnd = block.pairEnd[static_cast<size_t>(pi - begin)];
+    for (; next < primitivesEnd; ++next) {
+      const Primitive& q = block.primitives[static_cast<size_t>(next)];
+      any = test(q.vertex, q.vertexTriangle) || any;
     }
     hit = any ? 1 : 0;
   }
@@ -623,6 +669,7 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   if (!((skinLo_.array() <= skinHi_.array()).all() && skinLo_.allFinite() && skinHi_.allFinite()))
     in.fail("the self-collision skin boxes are not finite boxes");
   useCandidates();
+  for (Index k = 0; k < blocksUsed_; ++k) expandBlock(k);
   candidatesValid_ = valid;
 }
 

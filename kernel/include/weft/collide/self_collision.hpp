@@ -207,8 +207,16 @@ class SelfCollider {
     double weights[4];
     double normal[3];
   };
-  /// One block of kGrain candidate pairs: what the last pass found in it.
+  /// A vertex-triangle or edge-edge pair to advance (vertices as Contact's).
+  struct Primitive {
+    Index vertex[4];
+    bool vertexTriangle;
+  };
+  /// One block of kGrain candidate pairs: their primitive pairs (listed at the gathering,
+  /// those whose skin boxes come within the thickness), and what the last pass found.
   struct Block {
+    std::vector<Primitive> primitives;
+    std::vector<Index> pairEnd;  // per pair of the block: the end of its primitives
     std::vector<Contact> contacts;
     std::int64_t tests = 0;
     std::int64_t guards = 0;  // contacts below their failsafe threshold
@@ -231,6 +239,8 @@ class SelfCollider {
               SelfCollisionStats& stats);
   /// Sizes the blocks and flags for the candidate list in pairs_.
   void useCandidates();
+  /// Lists the primitive pairs of one block's triangle pairs (at a gathering).
+  void expandBlock(Index blockIndex);
   /// The triangle pairs of each block's range that may hold a contact in this chunk
   /// (thickness filter, owned primitives, advancement) into the block's contacts.
   void detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, bool all);
