@@ -226,25 +226,15 @@ void BM_Peer_Embree_Refit(benchmark::State& st) {
 void BM_Peer_Embree_ClothSphereOverlaps(benchmark::State& st) {
   const int threads = static_cast<int>(st.range(0));
   weft::Executor exec(threads);
-  std::vector<RTCCollision> found;
-  std::mutex lock;
+  weftbench::EmbreeCollisions pairs;
   exec.run([&] {
     EmbreeMesh cloth(drapedCloth<float>().x, drapedCloth<float>().triangles, threads, true, RTC_BUILD_QUALITY_MEDIUM);
     EmbreeMesh ball(sphere<float>(32).x, sphere<float>(32).triangles, threads, true, RTC_BUILD_QUALITY_MEDIUM);
     cloth.commit();
     ball.commit();
-    const auto collect = [](void* user, RTCCollision* collisions, unsigned count) {
-      auto* out = static_cast<std::pair<std::vector<RTCCollision>*, std::mutex*>*>(user);
-      std::lock_guard<std::mutex> guard(*out->second);
-      out->first->insert(out->first->end(), collisions, collisions + count);
-    };
-    std::pair<std::vector<RTCCollision>*, std::mutex*> sink{&found, &lock};
-    for (auto _ : st) {
-      found.clear();
-      rtcCollide(cloth.scene, ball.scene, collect, &sink);
-    }
+    for (auto _ : st) pairs.collide(cloth.scene, ball.scene);
   });
-  st.counters["candidates"] = static_cast<double>(found.size());
+  st.counters["candidates"] = static_cast<double>(pairs.found().size());
 }
 #endif
 

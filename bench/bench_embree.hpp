@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -94,6 +95,26 @@ struct EmbreeMesh {
     b.upper_y += self->margin;
     b.upper_z += self->margin;
   }
+};
+
+/// Every pair of primitives whose boxes overlap between two committed scenes (a scene with
+/// itself: each pair in both orders), collected from Embree's threads under a lock.
+class EmbreeCollisions {
+ public:
+  void collide(RTCScene a, RTCScene b) {
+    found_.clear();
+    rtcCollide(a, b, &EmbreeCollisions::collect, this);
+  }
+  const std::vector<RTCCollision>& found() const { return found_; }
+
+ private:
+  static void collect(void* user, RTCCollision* collisions, unsigned count) {
+    auto* self = static_cast<EmbreeCollisions*>(user);
+    std::lock_guard<std::mutex> guard(self->lock_);
+    self->found_.insert(self->found_.end(), collisions, collisions + count);
+  }
+  std::vector<RTCCollision> found_;
+  std::mutex lock_;
 };
 
 }  // namespace weftbench

@@ -29,8 +29,6 @@
 
 #include "bench_common.hpp"
 #ifdef WEFT_HAVE_EMBREE
-#include <mutex>
-
 #include "bench_embree.hpp"
 #endif
 #include "weft/weft.hpp"
@@ -164,26 +162,16 @@ void BM_Peer_Embree_SelfCollide(benchmark::State& st) {
   const int threads = static_cast<int>(st.range(1));
   Executor exec(threads);
   const ModelAndState<float> built = accordion<float>(size);
-  std::vector<RTCCollision> found;
-  std::mutex lock;
+  weftbench::EmbreeCollisions pairs;
   exec.run([&] {
     weftbench::EmbreeMesh cloth(built.state.x, built.model.triangles(), threads, true, RTC_BUILD_QUALITY_MEDIUM,
                                 0.5f * static_cast<float>(SelfCollisionOptions{}.thickness));
     cloth.commit();
-    const auto collect = [](void* user, RTCCollision* collisions, unsigned count) {
-      auto* out = static_cast<std::pair<std::vector<RTCCollision>*, std::mutex*>*>(user);
-      std::lock_guard<std::mutex> guard(*out->second);
-      out->first->insert(out->first->end(), collisions, collisions + count);
-    };
-    std::pair<std::vector<RTCCollision>*, std::mutex*> sink{&found, &lock};
-    for (auto _ : st) {
-      found.clear();
-      rtcCollide(cloth.scene, cloth.scene, collect, &sink);
-    }
+    for (auto _ : st) pairs.collide(cloth.scene, cloth.scene);
   });
   std::int64_t distinct = 0;
-  for (const RTCCollision& c : found) distinct += c.primID0 < c.primID1 ? 1 : 0;
-  st.counters["candidates"] = static_cast<double>(found.size());
+  for (const RTCCollision& c : pairs.found()) distinct += c.primID0 < c.primID1 ? 1 : 0;
+  st.counters["candidates"] = static_cast<double>(pairs.found().size());
   st.counters["pairs_i_lt_j"] = static_cast<double>(distinct);
 }
 BENCHMARK(BM_Peer_Embree_SelfCollide)
