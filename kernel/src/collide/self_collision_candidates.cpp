@@ -1,0 +1,167 @@
+// The self-collision pass's candidate list (see weft/collide/self_collision.hpp): whether it
+// still covers a chunk, gathering it (the BVH query with flat regions culled), the
+// primitive pairs of each triangle pair, and its place in checkpoints.
+#include <algorithm>
+#include <initializer_list>
+#include <limits>
+#include <span>
+#include <string>
+
+#include "weft/collide/self_collision.hpp"
+
+namespace weft {
+
+template <class S>
+bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec) {
+  if (!candidatesValid_) return false;
+  const Index n = model_->particleCount();
+  const Index blocks = Executor::blockCount(n, kVertexGrain);
+  blockFlags_.assign(static_cast<size_t>(blocks), 1);
+  exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        const S lo = skinLo_(i, a), hi = skinHi_(i, a);
+        inside = inside && x0(i, a) >= lo && x0(i, a) <= hi && x1(i, a) >= lo && x1(i, a) <= hi;
+      }
+    blockFlags_[static_cast<size_t>(k)] = inside ? 1 : 0;
+  });
+  return std::all_of(blockFlags_.begin(), blockFlags_.end(), [](std::uint8_t f) { return f != 0; });
+}
+
+template <class S>
+void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
+                                       SelfCollisionStats& stats) {
+  const Index n = model_->particleCount();
+  const S skin = static_cast<S>(skin_);
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        skinLo_(i, a) = std::min(x0(i, a), x1(i, a)) - skin;
+        skinHi_(i, a) = std::max(x0(i, a), x1(i, a)) + skin;
+      }
+  });
+  bvh_.refitSwept(x0, x1, exec);  // margin: half the thickness + the skin
+  const bool cull = !flat_.empty();
+  if (cull) findFlatRegions(exec);
+  bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
+                            cull ? std::span<const std::uint8_t>(flat_) : std::span<const std::uint8_t>());
+  ++stats.rebuilds;
+  stats.candidates += static_cast<std::int64_t>(pairs_.size());
+  useCandidates();
+  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
+    for (Index k = kb; k < ke; ++k) expandBlock(k);
+  });
+}
+
+template <class S>
+void SelfCollider<S>::useCandidates() {
+  const Index blocks = Executor::blockCount(static_cast<Index>(pairs_.size()), kGrain);
+  if (static_cast<Index>(blocks_.size()) < blocks) blocks_.resize(static_cast<size_t>(blocks));
+  blocksUsed_ = blocks;
+  pairHit_.assign(pairs_.size(), 0);
+  candidatesValid_ = true;
+}
+
+template <class S>
+void SelfCollider<S>::expandBlock(Index blockIndex) {
+  Block& block = blocks_[static_cast<size_t>(blockIndex)];
+  block.primitives.clear();
+  block.pairEnd.clear();
+  const Triangles& tr = model_->triangles();
+  const SurfaceTopology& topo = model_->surfaceTopology();
+  const double* th = thickness_.data();
+  // Whether the skin boxes of two primitives are farther apart than their thickness (then
+  // they cannot come that close while every vertex stays in its skin box).
+  const auto apart = [&](std::initializer_list<Index> first, std::initializer_list<Index> second) {
+    const double thickness = 0.5 * (th[*first.begin()] + th[*second.begin()]);
+    for (int a = 0; a < 3; ++a) {
+      double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
+      for (const Index i : first) {
+        lo1 = std::min(lo1, static_cast<double>(skinLo_(i, a)));
+        hi1 = std::max(hi1, static_cast<double>(skinHi_(i, a)));
+      }
+      for (const Index i : second) {
+        lo2 = std::min(lo2, static_cast<double>(skinLo_(i, a)));
+        hi2 = std::max(hi2, static_cast<double>(skinHi_(i, a)));
+      }
+      if (lo1 > hi2 + thickness || lo2 > hi1 + thickness) return true;
+    }
+    return false;
+  };
+  const Index count = static_cast<Index>(pairs_.size());
+  const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
+  for (Index pi = begin; pi < end; ++pi) {
+    const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
+    const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
+    const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
+    // Vertices owned by one triangle against the other.
+    for (int side = 0; side < 2; ++side) {
+      const Index owner = side == 0 ? pair.first : pair.second;
+      const Index* other = side == 0 ? tb : ta;
+      for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
+        const Index v = topo.ownedVertices.entries[k];
+        if (v == other[0] || v == other[1] || v == other[2]) continue;
+        if (apart({v}, {other[0], other[1], other[2]})) continue;
+        block.primitives.push_back({{v, other[0], other[1], other[2]}, true});
+      }
+    }
+    // Edges owned by one against edges owned by the other.
+    for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
+      const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
+      for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
+        const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
+        if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
+        if (apart({e[0], e[1]}, {f[0], f[1]})) continue;
+        block.primitives.push_back({{e[0], e[1], f[0], f[1]}, false});
+      }
+    }
+    block.pairEnd.push_back(static_cast<Index>(block.primitives.size()));
+  }
+}
+
+template <class S>
+void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
+  out.section("SELF");
+  out.value(static_cast<std::uint8_t>(candidatesValid_ ? 1 : 0));
+  out.array(skinLo_);
+  out.array(skinHi_);
+  out.vector(pairs_);
+}
+
+template <class S>
+void SelfCollider<S>::loadCarry(ArchiveReader& in) {
+  in.section("SELF");
+  bool valid = false;
+  in.flag(valid, "the self-collision candidates' flag");
+  in.field(skinLo_, "the self-collision skin boxes (low)");
+  in.field(skinHi_, "the self-collision skin boxes (high)");
+  in.field(pairs_, "the self-collision candidates");
+  const Index triangles = model_->triangleCount();
+  for (size_t k = 0; k < pairs_.size(); ++k) {
+    const TrianglePair& p = pairs_[k];
+    if (!(p.first >= 0 && p.first < p.second && p.second < triangles) || (k > 0 && !(pairs_[k - 1] < p)))
+      in.fail("self-collision candidate " + std::to_string(k) + " (" + std::to_string(p.first) + ", " +
+              std::to_string(p.second) + ") is not a sorted pair of the model's " + std::to_string(triangles) +
+              " triangles");
+  }
+  if (!((skinLo_.array() <= skinHi_.array()).all() && skinLo_.allFinite() && skinHi_.allFinite()))
+    in.fail("the self-collision skin boxes are not finite boxes");
+  useCandidates();
+  for (Index k = 0; k < blocksUsed_; ++k) expandBlock(k);
+  candidatesValid_ = valid;
+}
+
+#define WEFT_INSTANTIATE_CANDIDATES(S)                                                                       \
+  template bool SelfCollider<S>::candidatesCover(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&); \
+  template void SelfCollider<S>::gatherCandidates(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&, \
+                                                  SelfCollisionStats&);                                      \
+  template void SelfCollider<S>::useCandidates();                                                            \
+  template void SelfCollider<S>::expandBlock(Index);                                                         \
+  template void SelfCollider<S>::saveCarry(ArchiveWriter&) const;                                            \
+  template void SelfCollider<S>::loadCarry(ArchiveReader&);
+WEFT_INSTANTIATE_CANDIDATES(float)
+WEFT_INSTANTIATE_CANDIDATES(double)
+#undef WEFT_INSTANTIATE_CANDIDATES
+
+}  // namespace weft
