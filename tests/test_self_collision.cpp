@@ -608,8 +608,9 @@ SmallOnLarge smallOnLarge(double drop, double upperThickness = 0) {
 }
 
 TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
-  // The upper cloth 4 mm thick (as the lower) or 12 mm: the layers rest the mean apart.
-  for (const double upper : {0.004, 0.012}) {
+  // The upper cloth 12 mm thick on the 4 mm lower one: the layers rest the mean apart, 8 mm
+  // (with one thickness they rest 4 mm apart: RestingLayersNeitherJitterNorCreep).
+  for (const double upper : {0.012}) {
     SmallOnLarge scene = smallOnLarge(0.02, upper);
     Simulation<double>& sim = scene.sim;
     const Index n = sim.model().particleCount();
