@@ -214,6 +214,7 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
   const double thickest =
       thickness_.empty() ? options_.thickness : *std::max_element(thickness_.begin(), thickness_.end());
   skin_ = kSkin * thickest;
+  thinnest_ = thickness_.empty() ? options_.thickness : *std::min_element(thickness_.begin(), thickness_.end());
   const Index triangles = model.triangleCount();
   if (options_.cullFlatRegions && triangles > 0) {
     const Triangles& tr = model.triangles();
@@ -478,7 +479,8 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
       guards = guards || block.guards > 0;
       margin = std::min(margin, block.margin);
     }
-    if (!any) return stats;  // no pair within the thickness / 2: nothing can intersect
+    if (!any) return stats;                      // no pair within the thickness / 2: nothing can intersect
+    margin = std::min(margin, 0.5 * thinnest_);  // (the pairs not in contact: proven >= their thickness / 2)
     if (!last) {
       // Converged: no pair came within its failsafe threshold, so every pair stayed at
       // least `margin` apart over the chunk, and the response moved no vertex by more than

@@ -66,7 +66,8 @@
 //               with a vertex it moved (or that were in contact) are advanced again.
 //   early stop  Every detection also tests each contact against the failsafe's threshold
 //               theta (below). When none comes below it, every pair is proven to stay at
-//               least m = the least theta / 2 apart over the chunk; if the response then
+//               least m apart over the chunk (m: the least of the contacts' theta / 2 and
+//               of half the thinnest thickness, what a pair not in contact keeps); if the response then
 //               moves no vertex by more than m / 4 (as stored), no distance falls by more
 //               than m / 2 and nothing can intersect: the chunk ends there. Resting layers,
 //               in contact in every pass and moved by a rounding error, take one pass.
@@ -272,6 +273,7 @@ class SelfCollider {
   std::vector<std::uint8_t> frozen_;     // (n) stopped by the failsafe in this chunk
   std::vector<double> displacement_;     // (n) m, moved by the current response pass
   std::vector<double> thickness_;        // (n) m, each particle's cloth's thickness
+  double thinnest_ = 0;                  // m, the least thickness of a particle
   double skin_ = 0;                      // m
   Vec3Array<S> skinLo_, skinHi_;         // (n x 3) each vertex's skin box
   std::vector<Aabb<S>> triangleBox_;     // (triangles) each triangle's box over the chunk
