@@ -209,13 +209,26 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
                               const Executor& exec)
     : model_(&model), options_(options) {
   validateSelfCollision(options_, model, x, "SelfCollisionOptions");
+  const Index triangles = model.triangleCount();
   thickness_.assign(static_cast<size_t>(model.particleCount()), options_.thickness);
   if (!options_.particleThickness.empty()) thickness_ = options_.particleThickness;
-  const double thickest =
-      thickness_.empty() ? options_.thickness : *std::max_element(thickness_.begin(), thickness_.end());
+  double thickest = options_.thickness;
+  thinnest_ = options_.thickness;
+  if (!thickness_.empty()) {
+    const auto [thin, thick] = std::minmax_element(thickness_.begin(), thickness_.end());
+    thinnest_ = *thin;
+    thickest = *thick;
+  }
   skin_ = kSkin * thickest;
-  thinnest_ = thickness_.empty() ? options_.thickness : *std::min_element(thickness_.begin(), thickness_.end());
-  const Index triangles = model.triangleCount();
+  // A triangle's thickness: the largest of its corners' (what a pass compares two
+  // triangles' boxes with, before their primitives).
+  triangleThickness_.resize(static_cast<size_t>(triangles));
+  const Triangles& corners = model.triangles();
+  for (Index t = 0; t < triangles; ++t) {
+    triangleThickness_[static_cast<size_t>(t)] =
+        std::max({thickness_[static_cast<size_t>(corners.a[t])], thickness_[static_cast<size_t>(corners.b[t])],
+                  thickness_[static_cast<size_t>(corners.c[t])]});
+  }
   if (options_.cullFlatRegions && triangles > 0) {
     const Triangles& tr = model.triangles();
     double shortest2 = std::numeric_limits<double>::infinity();
@@ -356,7 +369,9 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     const Aabb<S>& first = triangleBox_[static_cast<size_t>(pair.first)];
     const Aabb<S>& second = triangleBox_[static_cast<size_t>(pair.second)];
     const double apartBeyond =
-        0.5 * (std::max({th[ta[0]], th[ta[1]], th[ta[2]]}) + std::max({th[tb[0]], th[tb[1]], th[tb[2]]})) * kApart;
+        0.5 *
+        (triangleThickness_[static_cast<size_t>(pair.first)] + triangleThickness_[static_cast<size_t>(pair.second)]) *
+        kApart;
     bool apart = false;
     for (int a = 0; a < 3 && !apart; ++a)
       apart = static_cast<double>(first.lo[a]) - static_cast<double>(second.hi[a]) > apartBeyond ||
@@ -411,6 +426,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
                                 SelfCollisionStats& stats) {
   const double mu = options_.friction;
   std::fill(displacement_.begin(), displacement_.end(), 0.0);
+  double largest = 0;  // m, the largest entry of displacement_
   for (Index k = 0; k < blocksUsed_; ++k) {
     for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
       ++stats.contacts;
@@ -443,7 +459,9 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
             const double d = static_cast<double>(x1(j, a)) - static_cast<double>(before);  // as stored
             step2 += d * d;
           }
-          displacement_[static_cast<size_t>(j)] += std::sqrt(step2);
+          double& total = displacement_[static_cast<size_t>(j)];
+          total += std::sqrt(step2);
+          largest = std::max(largest, total);
         }
       };
       const double push = std::max(0.0, c.thickness - s1);
@@ -458,7 +476,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       apply(push * n + h * dvt, dvn * n + dvt);
     }
   }
-  return *std::max_element(displacement_.begin(), displacement_.end());
+  return largest;
 }
 
 template <class S>

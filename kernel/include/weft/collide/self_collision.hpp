@@ -270,18 +270,19 @@ class SelfCollider {
   std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
   std::vector<Block> blocks_;
   Index blocksUsed_ = 0;
-  std::vector<std::uint8_t> frozen_;     // (n) stopped by the failsafe in this chunk
-  std::vector<double> displacement_;     // (n) m, moved by the current response pass
-  std::vector<double> thickness_;        // (n) m, each particle's cloth's thickness
-  double thinnest_ = 0;                  // m, the least thickness of a particle
-  double skin_ = 0;                      // m
-  Vec3Array<S> skinLo_, skinHi_;         // (n x 3) each vertex's skin box
-  std::vector<Aabb<S>> triangleBox_;     // (triangles) each triangle's box over the chunk
-  std::vector<std::uint8_t> connected_;  // (nodes) the node's triangles are edge-connected
-  std::vector<std::uint8_t> flat_;       // (nodes) a flat region at the last gathering: not queried
-  std::vector<Cone> cones_;              // (nodes) scratch of findFlatRegions
-  std::vector<Cone> leafCones_;          // (triangles, by slot) likewise
-  std::vector<Aabb<S>> sweptBox_;        // (n) each vertex's box over the chunk (one per vertex: read by index)
+  std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
+  std::vector<double> displacement_;       // (n) m, moved by the current response pass
+  std::vector<double> thickness_;          // (n) m, each particle's cloth's thickness
+  std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
+  double thinnest_ = 0;                    // m, the least thickness of a particle
+  double skin_ = 0;                        // m
+  Vec3Array<S> skinLo_, skinHi_;           // (n x 3) each vertex's skin box
+  std::vector<Aabb<S>> triangleBox_;       // (triangles) each triangle's box over the chunk
+  std::vector<std::uint8_t> connected_;    // (nodes) the node's triangles are edge-connected
+  std::vector<std::uint8_t> flat_;         // (nodes) a flat region at the last gathering: not queried
+  std::vector<Cone> cones_;                // (nodes) scratch of findFlatRegions
+  std::vector<Cone> leafCones_;            // (triangles, by slot) likewise
+  std::vector<Aabb<S>> sweptBox_;          // (n) each vertex's box over the chunk (one per vertex: read by index)
   bool candidatesValid_ = false;
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
