@@ -15,6 +15,7 @@ packages=(
   libtinygltf-dev                  # tinygltf (its header): glTF frames of `weft run --format gltf`, weft::io
   libboost-dev                     # Boost.Odeint (header-only): test-only cross-check of rk4/rk45
   python3-matplotlib               # plots of `weft study` (run with /usr/bin/python3)
+  openmpi-bin libopenmpi-dev       # OpenMPI: `mpirun -np N weft study` spreads the sweep over ranks (docs/distributed.md); optional at configure time
   clang-14 libclang-rt-14-dev      # tools/fuzz.sh: clang++-14 and its libFuzzer runtime (-fsanitize=fuzzer)
 )
 
