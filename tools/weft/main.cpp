@@ -191,6 +191,9 @@ int main(int argc, char** argv) {
   studyCmd->add_flag("!--no-plot", study.plot, "Do not draw the plot");
   studyCmd->add_option("--scene", study.scenes, "Only these scenes: oscillator, rope, flag (default: all)")
       ->check(CLI::IsMember({"oscillator", "rope", "flag"}));
+  studyCmd->add_option("--schedule", study.schedule,
+                       "Also write how the work was spread: one CSV row per task (phase, estimated cost, rank, host, "
+                       "wall seconds); with mpirun -np N the ranks share the sweep (docs/distributed.md)");
 
   weftcli::SoakOptions soak;
   CLI::App* soakCmd = app.add_subcommand(

@@ -11,19 +11,28 @@
 //     second, work counters, and whether the state is bitwise the same as on 1 thread.
 // Output: study.csv (one row per run), study.md (tables), study.png/.svg (plot by
 // tools/plot_study.py through /usr/bin/python3).
+//
+// The work runs in three phases of independent tasks — references, stability limits,
+// points — which an MPI job spreads over its ranks, largest first (study_schedule.hpp,
+// docs/distributed.md); the files are the same as a single process writes but for the
+// timing columns and the host each point ran on.
 #include "study_command.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <string_view>
 
+#include "ranks.hpp"
+#include "study_schedule.hpp"
 #include "weft/weft.hpp"
 
 #ifndef WEFT_SOURCE_DIR
@@ -195,17 +204,149 @@ struct Row {
   double stableMeasured = NAN, stableEstimate = NAN;
   std::string status;
   bool sameAsOneThread = true;
+  std::string host;  // the machine the run was timed on
 };
+
+void pack(Packer& out, const Row& r) {
+  for (const std::string* text : {&r.scene, &r.integrator, &r.precision, &r.status, &r.host}) out.put(*text);
+  out.put(r.threads);
+  out.put(r.steps);
+  for (const double v : {r.dt, r.tolerance, r.simulated, r.error, r.errorHalf, r.energyError, r.wall,
+                         r.wallPerSimulated, r.forceEvaluations, r.linearIterations, r.rejected, r.substeps,
+                         r.stableMeasured, r.stableEstimate})
+    out.put(v);
+  out.put(r.sameAsOneThread);
+}
+
+Row unpackRow(Unpacker& in) {
+  Row r;
+  for (std::string* text : {&r.scene, &r.integrator, &r.precision, &r.status, &r.host}) *text = in.getString();
+  r.threads = in.get<int>();
+  r.steps = in.get<Index>();
+  for (double* v : {&r.dt, &r.tolerance, &r.simulated, &r.error, &r.errorHalf, &r.energyError, &r.wall,
+                    &r.wallPerSimulated, &r.forceEvaluations, &r.linearIterations, &r.rejected, &r.substeps,
+                    &r.stableMeasured, &r.stableEstimate})
+    *v = in.get<double>();
+  r.sameAsOneThread = in.get<bool>();
+  return r;
+}
+
+void pack(Packer& out, const weft::Vec3Array<double>& x) {
+  out.put<Index>(x.rows());
+  out.put(std::string_view(reinterpret_cast<const char*>(x.data()), sizeof(double) * static_cast<std::size_t>(x.size())));
+}
+
+weft::Vec3Array<double> unpackPositions(Unpacker& in) {
+  const auto rows = in.get<Index>();
+  const std::string bytes = in.getString();
+  if (rows < 0 || bytes.size() != sizeof(double) * 3 * static_cast<std::size_t>(rows))
+    throw std::runtime_error("study: a reference's positions came back with the wrong size");
+  weft::Vec3Array<double> x(rows, 3);
+  std::memcpy(x.data(), bytes.data(), bytes.size());
+  return x;
+}
+
+// Estimated costs, in units of about one spring (or particle) visited by a force
+// evaluation: only their order and ratios within a phase matter (largest first). Measured
+// against the actual times in docs/distributed.md.
+constexpr double kDispatch = 500;   // a parallel pass's start and end, in those units
+constexpr double kRunSetUp = 2e4;   // building a Simulation (model copy, arena)
+
+/// Work of one force evaluation of the scene.
+double evaluationWork(const weft::Model<double>& model) {
+  return static_cast<double>(model.springCount() + model.particleCount()) + kDispatch;
+}
+
+/// Force evaluations (or their equivalent) per step of a fixed-step method. Implicit Euler:
+/// one evaluation and a Jacobian product per CG iteration, whose count grows with dt over the
+/// explicit limit (about 10 per multiple of RK4's stable step, capped: the study's flag
+/// and rope take 8 to 400).
+double evaluationsPerStep(IntegratorKind kind, double dtOverRk4Limit) {
+  switch (kind) {
+    case IntegratorKind::Midpoint: return 2;
+    case IntegratorKind::Rk4: return 4;
+    case IntegratorKind::Rk45: return 6;
+    case IntegratorKind::ImplicitEuler: return 2 + 1.5 * std::clamp(10 * dtOverRk4Limit, 1.0, 400.0);
+    default: return 1;
+  }
+}
 
 }  // namespace
 
+namespace {
+
+struct SceneData {
+  Reference ref;
+  double omegaMax = 0, energy0 = 0, energyMargin = 0;
+  double work = 0;       // estimated work of one force evaluation
+  double rk4Limit = 0;   // the kernel's RK4 estimate, s
+};
+
+/// One scene x integrator x precision: its stability limit, then its points.
+struct Cell {
+  std::size_t scene = 0;
+  IntegratorKind kind{};
+  bool isFloat = false;
+  double estimate = 0, scale = 0;
+  std::optional<double> measured;
+};
+
+struct Point {
+  std::size_t cell = 0;
+  double dt = 0, tolerance = 0;
+};
+
+std::string cellName(const std::vector<SceneDef>& scenes, const Cell& c) {
+  return scenes[c.scene].name + " " + weft::integratorName(c.kind) + " " + (c.isFloat ? "float" : "double");
+}
+
+int study(const StudyOptions& o, const Ranks& ranks, bool& written);
+
+}  // namespace
+
+int plotStudy(const StudyOptions& o);
+
 int runStudy(const StudyOptions& o) {
+  Ranks ranks = Ranks::join();
+  try {
+    bool written = false;
+    const int code = study(o, ranks, written);
+    // Before forking the plotter: an MPI process should not fork (some transports break).
+    ranks.finish();
+    if (written) {
+      const int plotted = plotStudy(o);
+      if (plotted != 0) return plotted;
+    }
+    return code;
+  } catch (const std::exception& e) {
+    if (ranks.size() > 1) {  // the other ranks would wait for this one forever
+      std::cerr << "weft: " << e.what() << " (rank " << ranks.rank() << " of " << ranks.size() << ", on "
+                << ranks.host() << ")\n";
+      ranks.abort(2);
+    }
+    throw;
+  }
+}
+
+namespace {
+
+int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
   namespace fs = std::filesystem;
-  std::error_code made;
-  fs::create_directories(o.out, made);
-  if (made || !fs::is_directory(o.out))
-    throw std::runtime_error("study --out: cannot create the output directory '" + o.out +
-                             "': " + (made ? made.message() : std::string("a file of that name is in the way")));
+  {
+    // Rank 0 writes the files: only its file system needs the directory.
+    std::string refused;
+    if (ranks.root()) {
+      std::error_code made;
+      fs::create_directories(o.out, made);
+      if (made || !fs::is_directory(o.out))
+        refused = "study --out: cannot create the output directory '" + o.out +
+                  "': " + (made ? made.message() : std::string("a file of that name is in the way"));
+    }
+    if (ranks.broadcast(refused.empty() ? 0 : 1) != 0) {
+      if (ranks.root()) std::cerr << "weft: " << refused << "\n";
+      return 2;
+    }
+  }
   const bool quick = o.quick;
   std::vector<SceneDef> scenes;
   {
@@ -237,118 +378,236 @@ int runStudy(const StudyOptions& o) {
   const int bisections = quick ? 4 : 7;
   const int repetitions = quick ? 1 : 3;
   const auto started = std::chrono::steady_clock::now();
+  std::vector<TaskRecord> schedule;
 
-  std::vector<Row> rows;
-  std::ostringstream stableTable, referenceTable;
-  for (const SceneDef& scene : scenes) {
-    std::cerr << "study: " << scene.name << " (T = " << scene.duration << " s): reference" << std::endl;
-    const Reference ref = reference(scene, quick);
-    referenceTable << "| " << scene.name << " | " << scene.duration << " | "
-                   << (scene.analytic ? std::string("exact solution")
-                                      : "RK4 double, dt " + fmt(ref.dt) + " s; vs 2 dt: " + fmt(ref.selfCheck) + " m")
-                   << " |\n";
-    const weft::ModelAndState<double> model = build<double>(scene);
-    const double omegaMax = weft::maxAngularFrequency(model.model);
-    const double energy0 = weft::energy(model.model, model.state, scene.gravity).total();
-    const double energyMargin = std::max(std::abs(energy0), std::abs(ref.energy - energy0));
-    for (const IntegratorKind kind : weft::kAllIntegrators) {
-      for (const bool isFloat : {false, true}) {
-        const std::string precision = isFloat ? "float" : "double";
-        const double estimate = weft::estimateStableTimeStep(model.model, kind);
-        // Scale of the bisection: the estimate, or for methods without an imaginary-axis
-        // limit (explicit Euler, midpoint: damping alone keeps them stable) symplectic
-        // Euler's; implicit Euler is tried up to the whole duration.
-        const double scale = estimate > 0 && std::isfinite(estimate)
-                                 ? estimate
-                                 : weft::estimateStableTimeStep(model.model, IntegratorKind::SymplecticEuler);
-        std::optional<double> measured;
-        if (kind == IntegratorKind::ImplicitEuler)
-          measured = largestStableStep(isFloat, scene, kind, scale, scene.duration / 2, bisections, maxThreads, energy0,
-                                       energyMargin);
-        else if (kind != IntegratorKind::Rk45)
-          measured = largestStableStep(isFloat, scene, kind, scale / 16, scale * 16, bisections, maxThreads, energy0,
-                                       energyMargin);
-        else  // fixed-step rk45 (the adaptive one is limited only by its substeps)
-          measured = largestStableStep(isFloat, scene, kind, scale / 4, scale * 64, bisections, maxThreads, energy0,
-                                       energyMargin);
-        const double limit = measured.value_or(NAN);
-        stableTable << "| " << scene.name << " | " << weft::integratorName(kind) << " | " << precision << " | "
-                    << fmt(estimate) << " | " << (measured ? fmt(limit) : std::string("none found")) << " | "
-                    << (measured && estimate > 0 && std::isfinite(estimate) && std::isfinite(limit)
-                            ? fmt(limit / estimate, 3)
-                            : std::string("-"))
-                    << " | " << (std::isfinite(limit) ? fmt(limit * omegaMax, 3) : std::string("-")) << " |\n";
-
-        // The sweep.
-        struct Point {
-          double dt, tolerance;
-        };
-        std::vector<Point> points;
-        if (kind == IntegratorKind::Rk45) {
-          const double frame = scene.duration / std::ceil(scene.duration * 60 - 1e-9);
-          // Float cannot resolve an error estimate much below its epsilon (1.2e-7): tighter
-          // tolerances only shrink the substeps towards minSubstep.
-          for (const double tol : tolerances)
-            if (!isFloat || tol >= 1e-6) points.push_back({frame, tol});
-        } else if (kind == IntegratorKind::ImplicitEuler) {
-          const double rk4 = weft::estimateStableTimeStep(model.model, IntegratorKind::Rk4);
-          for (const double f : implicitFactors)
-            if (f * rk4 <= scene.duration / 2) points.push_back({f * rk4, 0});
-        } else if (measured && std::isfinite(limit)) {
-          for (const double f : dtFactors) points.push_back({f * limit, 0});
-        }
-        for (const Point& p : points) {
-          // Explicit Euler's tiny stable steps would take most of the study's time: skip
-          // points needing more than this many steps (they are slower than every other
-          // method at any accuracy anyway).
-          if (scene.duration / p.dt > (quick ? 20000 : 100000)) continue;
-          weft::IntegratorOptions io;
-          io.relativeTolerance = io.absoluteTolerance = p.tolerance > 0 ? p.tolerance : 1e-6;
-          io.linearTolerance = isFloat ? 1e-5 : 1e-8;
-          std::uint64_t hashOne = 0;
-          for (const int threads : o.threads) {
-            std::vector<double> walls;
-            RunResult r;
-            for (int rep = 0; rep < repetitions; ++rep) {
-              r = runAny(isFloat, scene, kind, p.dt, io, threads);
-              walls.push_back(r.wall);
-            }
-            std::sort(walls.begin(), walls.end());
-            Row row;
-            row.scene = scene.name;
-            row.integrator = weft::integratorName(kind);
-            row.precision = precision;
-            row.threads = threads;
-            row.steps = r.steps;
-            row.dt = scene.duration / static_cast<double>(std::max<Index>(r.steps, 1));
-            if (!r.status.ok()) row.dt = p.dt;
-            row.tolerance = p.tolerance;
-            row.simulated = row.dt * static_cast<double>(r.steps);
-            row.status = r.status.ok() ? "ok" : weft::stepCodeName(r.status.code);
-            row.wall = walls[walls.size() / 2];
-            row.wallPerSimulated = r.status.ok() ? row.wall / scene.duration : NAN;
-            if (r.status.ok()) {
-              row.error = errorAt(scene, r.x, &r.v, ref.x, scene.duration);
-              row.errorHalf = errorAt(scene, r.xHalf, nullptr, ref.xHalf, scene.duration / 2);
-              row.energyError = std::abs(r.energy - ref.energy) / std::max(std::abs(ref.energy), 1e-12);
-            }
-            const double n = static_cast<double>(std::max<Index>(r.steps, 1));
-            row.forceEvaluations = static_cast<double>(r.work.forceEvaluations) / n;
-            row.linearIterations = static_cast<double>(r.work.linearIterations) / n;
-            row.rejected = static_cast<double>(r.work.rejectedSubsteps) / n;
-            row.substeps = static_cast<double>(r.work.substeps) / n;
-            row.stableMeasured = limit;
-            row.stableEstimate = estimate;
-            if (threads == o.threads.front()) hashOne = r.hash;
-            row.sameAsOneThread = r.hash == hashOne;
-            rows.push_back(row);
-          }
-        }
-      }
-      std::cerr << "study: " << scene.name << " " << weft::integratorName(kind) << " done ("
-                << fmt(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 3) << " s)"
-                << std::endl;
+  // Phase 1: the references, one task per scene.
+  std::vector<SceneData> data(scenes.size());
+  {
+    std::vector<StudyTask> tasks;
+    for (std::size_t s = 0; s < scenes.size(); ++s) {
+      const weft::ModelAndState<double> model = build<double>(scenes[s]);
+      data[s].work = evaluationWork(model.model);
+      data[s].rk4Limit = weft::estimateStableTimeStep(model.model, IntegratorKind::Rk4);
+      data[s].omegaMax = weft::maxAngularFrequency(model.model);
+      data[s].energy0 = weft::energy(model.model, model.state, scenes[s].gravity).total();
+      // RK4 at dt and dt / 2 (reference()): three runs' worth at dt.
+      const double steps = scenes[s].duration / ((quick ? 0.1 : 0.05) * data[s].rk4Limit);
+      tasks.push_back({"reference " + scenes[s].name,
+                       scenes[s].analytic ? 1.0 : 3 * steps * 4 * data[s].work + 2 * kRunSetUp});
     }
+    const std::vector<std::string> results = runSpread(
+        ranks, "references", tasks,
+        [&](std::size_t s) {
+          const Reference ref = reference(scenes[s], quick);
+          Packer out;
+          pack(out, ref.xHalf);
+          pack(out, ref.x);
+          for (const double v : {ref.energy, ref.selfCheck, ref.dt}) out.put(v);
+          return out.bytes();
+        },
+        schedule);
+    for (std::size_t s = 0; s < scenes.size(); ++s) {
+      Unpacker in(results[s]);
+      Reference& ref = data[s].ref;
+      ref.xHalf = unpackPositions(in);
+      ref.x = unpackPositions(in);
+      ref.energy = in.get<double>();
+      ref.selfCheck = in.get<double>();
+      ref.dt = in.get<double>();
+      data[s].energyMargin = std::max(std::abs(data[s].energy0), std::abs(ref.energy - data[s].energy0));
+    }
+  }
+
+  // Phase 2: the largest stable step of each scene x integrator x precision (bisection).
+  std::vector<Cell> cells;
+  {
+    std::vector<StudyTask> tasks;
+    for (std::size_t s = 0; s < scenes.size(); ++s) {
+      const weft::ModelAndState<double> model = build<double>(scenes[s]);
+      for (const IntegratorKind kind : weft::kAllIntegrators)
+        for (const bool isFloat : {false, true}) {
+          Cell c;
+          c.scene = s;
+          c.kind = kind;
+          c.isFloat = isFloat;
+          c.estimate = weft::estimateStableTimeStep(model.model, kind);
+          // Scale of the bisection: the estimate, or for methods without an imaginary-axis
+          // limit (explicit Euler, midpoint: damping alone keeps them stable) symplectic
+          // Euler's; implicit Euler is tried up to the whole duration.
+          c.scale = c.estimate > 0 && std::isfinite(c.estimate)
+                        ? c.estimate
+                        : weft::estimateStableTimeStep(model.model, IntegratorKind::SymplecticEuler);
+          // Probes near the limit, each over the duration but at least 1000 steps; the
+          // limit is the estimate, or for explicit Euler and midpoint about 1/45 and 1/4 of
+          // symplectic Euler's (the study's scenes); implicit Euler is stable at its first
+          // probe (half the duration: two steps).
+          const double duration = scenes[s].duration;
+          const double expected = c.scale / (kind == IntegratorKind::ExplicitEuler ? 45.0
+                                             : kind == IntegratorKind::Midpoint    ? 4.0
+                                                                                   : 1.0);
+          const double cost =
+              kind == IntegratorKind::ImplicitEuler
+                  ? 2 * evaluationsPerStep(kind, duration / 2 / data[s].rk4Limit) * data[s].work + kRunSetUp
+                  : (bisections + 2) * (std::max(duration / expected, 1000.0) * evaluationsPerStep(kind, 1) *
+                                            data[s].work +
+                                        kRunSetUp);
+          tasks.push_back({"limit " + cellName(scenes, c), cost});
+          cells.push_back(c);
+        }
+    }
+    const std::vector<std::string> results = runSpread(
+        ranks, "stability limits", tasks,
+        [&](std::size_t i) {
+          const Cell& c = cells[i];
+          const SceneDef& scene = scenes[c.scene];
+          const SceneData& d = data[c.scene];
+          std::optional<double> measured;
+          if (c.kind == IntegratorKind::ImplicitEuler)
+            measured = largestStableStep(c.isFloat, scene, c.kind, c.scale, scene.duration / 2, bisections, maxThreads,
+                                         d.energy0, d.energyMargin);
+          else if (c.kind != IntegratorKind::Rk45)
+            measured = largestStableStep(c.isFloat, scene, c.kind, c.scale / 16, c.scale * 16, bisections, maxThreads,
+                                         d.energy0, d.energyMargin);
+          else  // fixed-step rk45 (the adaptive one is limited only by its substeps)
+            measured = largestStableStep(c.isFloat, scene, c.kind, c.scale / 4, c.scale * 64, bisections, maxThreads,
+                                         d.energy0, d.energyMargin);
+          Packer out;
+          out.put(measured.has_value());
+          out.put(measured.value_or(NAN));
+          return out.bytes();
+        },
+        schedule);
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      Unpacker in(results[i]);
+      if (in.get<bool>()) cells[i].measured = in.get<double>();
+    }
+  }
+
+  std::ostringstream stableTable, referenceTable;
+  for (std::size_t s = 0; s < scenes.size(); ++s)
+    referenceTable << "| " << scenes[s].name << " | " << scenes[s].duration << " | "
+                   << (scenes[s].analytic ? std::string("exact solution")
+                                          : "RK4 double, dt " + fmt(data[s].ref.dt) + " s; vs 2 dt: " +
+                                                fmt(data[s].ref.selfCheck) + " m")
+                   << " |\n";
+  for (const Cell& c : cells) {
+    const double limit = c.measured.value_or(NAN);
+    stableTable << "| " << scenes[c.scene].name << " | " << weft::integratorName(c.kind) << " | "
+                << (c.isFloat ? "float" : "double") << " | " << fmt(c.estimate) << " | "
+                << (c.measured ? fmt(limit) : std::string("none found")) << " | "
+                << (c.measured && c.estimate > 0 && std::isfinite(c.estimate) && std::isfinite(limit)
+                        ? fmt(limit / c.estimate, 3)
+                        : std::string("-"))
+                << " | " << (std::isfinite(limit) ? fmt(limit * data[c.scene].omegaMax, 3) : std::string("-"))
+                << " |\n";
+  }
+
+  // Phase 3: the sweep, one task per point (all its thread counts and repetitions).
+  std::vector<Point> points;
+  std::vector<StudyTask> pointTasks;
+  for (std::size_t ci = 0; ci < cells.size(); ++ci) {
+    const Cell& c = cells[ci];
+    const SceneDef& scene = scenes[c.scene];
+    const SceneData& d = data[c.scene];
+    const double limit = c.measured.value_or(NAN);
+    std::vector<Point> mine;
+    if (c.kind == IntegratorKind::Rk45) {
+      const double frame = scene.duration / std::ceil(scene.duration * 60 - 1e-9);
+      // Float cannot resolve an error estimate much below its epsilon (1.2e-7): tighter
+      // tolerances only shrink the substeps towards minSubstep.
+      for (const double tol : tolerances)
+        if (!c.isFloat || tol >= 1e-6) mine.push_back({ci, frame, tol});
+    } else if (c.kind == IntegratorKind::ImplicitEuler) {
+      for (const double f : implicitFactors)
+        if (f * d.rk4Limit <= scene.duration / 2) mine.push_back({ci, f * d.rk4Limit, 0});
+    } else if (c.measured && std::isfinite(limit)) {
+      for (const double f : dtFactors) mine.push_back({ci, f * limit, 0});
+    }
+    for (const Point& p : mine) {
+      // Explicit Euler's tiny stable steps would take most of the study's time: skip
+      // points needing more than this many steps (they are slower than every other
+      // method at any accuracy anyway).
+      if (scene.duration / p.dt > (quick ? 20000 : 100000)) continue;
+      double steps = scene.duration / p.dt;
+      double perStep = evaluationsPerStep(c.kind, p.dt / d.rk4Limit);
+      if (c.kind == IntegratorKind::Rk45) {
+        // Substeps per frame: at loose tolerances the stability limit's count (fixed-step
+        // rk45's limit), then about 10^(1/5) more per decade below 1e-6.
+        const double stable = std::isfinite(limit) ? p.dt / limit : 1.0;
+        perStep *= std::max(1.0, stable) * std::max(1.0, 2 * std::pow(1e-6 / p.tolerance, 0.2));
+      }
+      const double cost = repetitions * static_cast<double>(o.threads.size()) *
+                          (steps * perStep * d.work + kRunSetUp);
+      std::ostringstream name;
+      name << "point " << cellName(scenes, c) << " dt " << fmt(p.dt);
+      if (p.tolerance > 0) name << " tol " << fmt(p.tolerance);
+      pointTasks.push_back({name.str(), cost});
+      points.push_back(p);
+    }
+  }
+  const std::vector<std::string> pointResults = runSpread(
+      ranks, "points", pointTasks,
+      [&](std::size_t i) {
+        const Point& p = points[i];
+        const Cell& c = cells[p.cell];
+        const SceneDef& scene = scenes[c.scene];
+        const Reference& ref = data[c.scene].ref;
+        const double limit = c.measured.value_or(NAN);
+        weft::IntegratorOptions io;
+        io.relativeTolerance = io.absoluteTolerance = p.tolerance > 0 ? p.tolerance : 1e-6;
+        io.linearTolerance = c.isFloat ? 1e-5 : 1e-8;
+        std::uint64_t hashOne = 0;
+        Packer out;
+        for (const int threads : o.threads) {
+          std::vector<double> walls;
+          RunResult r;
+          for (int rep = 0; rep < repetitions; ++rep) {
+            r = runAny(c.isFloat, scene, c.kind, p.dt, io, threads);
+            walls.push_back(r.wall);
+          }
+          std::sort(walls.begin(), walls.end());
+          Row row;
+          row.scene = scene.name;
+          row.integrator = weft::integratorName(c.kind);
+          row.precision = c.isFloat ? "float" : "double";
+          row.threads = threads;
+          row.steps = r.steps;
+          row.dt = scene.duration / static_cast<double>(std::max<Index>(r.steps, 1));
+          if (!r.status.ok()) row.dt = p.dt;
+          row.tolerance = p.tolerance;
+          row.simulated = row.dt * static_cast<double>(r.steps);
+          row.status = r.status.ok() ? "ok" : weft::stepCodeName(r.status.code);
+          row.wall = walls[walls.size() / 2];
+          row.wallPerSimulated = r.status.ok() ? row.wall / scene.duration : NAN;
+          if (r.status.ok()) {
+            row.error = errorAt(scene, r.x, &r.v, ref.x, scene.duration);
+            row.errorHalf = errorAt(scene, r.xHalf, nullptr, ref.xHalf, scene.duration / 2);
+            row.energyError = std::abs(r.energy - ref.energy) / std::max(std::abs(ref.energy), 1e-12);
+          }
+          const double n = static_cast<double>(std::max<Index>(r.steps, 1));
+          row.forceEvaluations = static_cast<double>(r.work.forceEvaluations) / n;
+          row.linearIterations = static_cast<double>(r.work.linearIterations) / n;
+          row.rejected = static_cast<double>(r.work.rejectedSubsteps) / n;
+          row.substeps = static_cast<double>(r.work.substeps) / n;
+          row.stableMeasured = limit;
+          row.stableEstimate = c.estimate;
+          if (threads == o.threads.front()) hashOne = r.hash;
+          row.sameAsOneThread = r.hash == hashOne;
+          row.host = ranks.host();
+          pack(out, row);
+        }
+        return out.bytes();
+      },
+      schedule);
+  std::vector<Row> rows;
+  for (const std::string& result : pointResults) {
+    Unpacker in(result);
+    while (!in.done()) rows.push_back(unpackRow(in));
+  }
+  if (!ranks.root()) {  // rank 0 writes the files
+    bool allSame = true;
+    for (const Row& r : rows) allSame = allSame && r.sameAsOneThread;
+    return allSame ? 0 : 1;
   }
 
   // CSV.
@@ -356,14 +615,14 @@ int runStudy(const StudyOptions& o) {
   {
     std::ofstream csv(csvPath);
     csv << "scene,integrator,precision,threads,dt,tolerance,steps,simulated_seconds,error,error_half,energy_drift,"
-           "wall_seconds,wall_per_simulated_second,force_evaluations,linear_iterations,rejected_substeps,substeps,"
+           "wall_seconds,wall_per_simulated_second,host,force_evaluations,linear_iterations,rejected_substeps,substeps,"
            "stable_dt_measured,stable_dt_estimate,status,bitwise_same_as_first_thread_count\n";
     csv.precision(9);
     for (const Row& r : rows)
       csv << r.scene << ',' << r.integrator << ',' << r.precision << ',' << r.threads << ',' << r.dt << ','
           << r.tolerance << ',' << r.steps << ',' << r.simulated << ',' << fmt(r.error, 9) << ',' << fmt(r.errorHalf, 9)
-          << ',' << fmt(r.energyError, 9) << ',' << r.wall << ',' << fmt(r.wallPerSimulated, 9) << ','
-          << r.forceEvaluations << ',' << r.linearIterations << ',' << r.rejected << ',' << r.substeps << ','
+          << ',' << fmt(r.energyError, 9) << ',' << r.wall << ',' << fmt(r.wallPerSimulated, 9) << ',' << r.host
+          << ',' << r.forceEvaluations << ',' << r.linearIterations << ',' << r.rejected << ',' << r.substeps << ','
           << fmt(r.stableMeasured, 9) << ',' << fmt(r.stableEstimate, 9) << ',' << r.status << ','
           << (r.sameAsOneThread ? 1 : 0) << '\n';
     if (!csv) {
@@ -378,7 +637,14 @@ int runStudy(const StudyOptions& o) {
      << "Error: oscillator = phase-space error / amplitude at T; rope and flag = largest position error of any "
         "particle at T, m. Wall time per simulated second on "
      << maxThreads << " thread(s), median of " << repetitions
-     << ".\n\n## References\n\n| scene | T (s) | reference |\n|---|---|---|\n"
+     << ".\n";
+  std::vector<std::string> hosts;
+  for (const Row& r : rows)
+    if (std::find(hosts.begin(), hosts.end(), r.host) == hosts.end()) hosts.push_back(r.host);
+  if (hosts.size() > 1)
+    md << "The runs were timed on " << hosts.size()
+       << " machines (study.csv's host column): compare wall times within one machine.\n";
+  md << "\n## References\n\n| scene | T (s) | reference |\n|---|---|---|\n"
      << referenceTable.str() << "\n## Cheapest run reaching each error\n\n"
      << "| scene | error <= | integrator | precision | dt (s) | rk45 tol | error | wall s / simulated s |\n"
      << "|---|---|---|---|---|---|---|---|\n";
@@ -406,26 +672,48 @@ int runStudy(const StudyOptions& o) {
   md << "\nEvery run's final state bitwise identical across thread counts: " << (allSame ? "yes" : "**no**") << "\n";
   const fs::path mdPath = fs::path(o.out) / "study.md";
   std::ofstream(mdPath) << md.str();
+  written = true;
   std::cout << md.str();
-  std::cout << "\nwrote " << csvPath.string() << " and " << mdPath.string() << " (" << rows.size() << " runs, "
-            << fmt(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 3) << " s)\n";
+  std::cout << "\nwrote " << csvPath.string() << " and " << mdPath.string() << " (" << rows.size() << " runs";
+  if (ranks.size() > 1) std::cout << " on " << ranks.size() << " ranks, " << hosts.size() << " host(s)";
+  std::cout << ", " << fmt(std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 3)
+            << " s)\n";
 
-  if (o.plot) {
-    const fs::path script = fs::path(WEFT_SOURCE_DIR) / "tools" / "plot_study.py";
-    const fs::path prefix = fs::path(o.out) / "study";
-    if (!fs::exists(script) || !fs::exists("/usr/bin/python3")) {
-      std::cerr << "weft study: plot skipped (" << script << " or /usr/bin/python3 missing)\n";
-    } else {
-      const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + csvPath.string() + "' '" +
-                              prefix.string() + "' --threads " + std::to_string(maxThreads);
-      std::cout.flush();
-      if (std::system(cmd.c_str()) != 0) {
-        std::cerr << "weft study: plotting failed (is python3-matplotlib installed? bash tools/setup.sh)\n";
-        return 1;
-      }
+  if (!o.schedule.empty()) {
+    std::ofstream out(o.schedule);
+    out << "phase,task,estimated_cost,rank,host,wall_seconds\n";
+    out.precision(6);
+    for (const TaskRecord& t : schedule)
+      out << t.phase << ',' << t.name << ',' << t.cost << ',' << t.rank << ',' << t.host << ',' << t.wall << '\n';
+    if (!out) {
+      std::cerr << "weft study: could not write " << o.schedule << "\n";
+      return 1;
     }
   }
   return allSame ? 0 : 1;
+}
+
+}  // namespace
+
+int plotStudy(const StudyOptions& o) {
+  if (!o.plot) return 0;
+  namespace fs = std::filesystem;
+  const int maxThreads = *std::max_element(o.threads.begin(), o.threads.end());
+  const fs::path csvPath = fs::path(o.out) / "study.csv";
+  const fs::path script = fs::path(WEFT_SOURCE_DIR) / "tools" / "plot_study.py";
+  const fs::path prefix = fs::path(o.out) / "study";
+  if (!fs::exists(script) || !fs::exists("/usr/bin/python3")) {
+    std::cerr << "weft study: plot skipped (" << script << " or /usr/bin/python3 missing)\n";
+    return 0;
+  }
+  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + csvPath.string() + "' '" +
+                          prefix.string() + "' --threads " + std::to_string(maxThreads);
+  std::cout.flush();
+  if (std::system(cmd.c_str()) != 0) {
+    std::cerr << "weft study: plotting failed (is python3-matplotlib installed? bash tools/setup.sh)\n";
+    return 1;
+  }
+  return 0;
 }
 
 }  // namespace weftcli

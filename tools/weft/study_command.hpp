@@ -14,9 +14,14 @@ struct StudyOptions {
   std::vector<int> threads = {1, 2};  // thread counts to time
   bool plot = true;                   // run tools/plot_study.py through /usr/bin/python3
   std::vector<std::string> scenes;    // oscillator, rope, flag (empty: all three)
+  std::string schedule;               // if set, rank 0 writes each task's rank, host and time here (CSV)
 };
 
 /// Runs the study and writes its files; returns the process exit code (0 on success).
+/// Under mpirun the ranks share the work and rank 0 writes the files (docs/distributed.md).
 int runStudy(const StudyOptions& options);
+
+/// Draws study.png/.svg from study.csv (tools/plot_study.py); 0 on success or when skipped.
+int plotStudy(const StudyOptions& options);
 
 }  // namespace weftcli
