@@ -15,6 +15,9 @@ packages=(
   libtinygltf-dev                  # tinygltf (its header): glTF frames of `weft run --format gltf`, weft::io
   libboost-dev                     # Boost.Odeint (header-only): test-only cross-check of rk4/rk45
   python3-matplotlib               # plots of `weft study` (run with /usr/bin/python3)
+  libosmesa6-dev libpng-dev        # `weft render`: Mesa's offscreen OpenGL (llvmpipe, no display or GPU) and PNG files
+  libglfw3-dev                     # `weft view`: a window with an OpenGL 3.3 core context
+  xvfb xauth                       # `weft view`'s test under a virtual X display (xvfb-run)
   openmpi-bin libopenmpi-dev       # OpenMPI: `mpirun -np N weft study` spreads the sweep over ranks (docs/distributed.md); optional at configure time
   clang-14 libclang-rt-14-dev      # tools/fuzz.sh: clang++-14 and its libFuzzer runtime (-fsanitize=fuzzer)
 )

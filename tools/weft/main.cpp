@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "render_command.hpp"
 #include "run_command.hpp"
 #include "soak_command.hpp"
 #include "study_command.hpp"
@@ -103,6 +104,116 @@ int reportExtras(const CLI::App& cmd, const std::vector<std::string>& extras) {
   std::cerr << "Run with --help for more information.\n";
   return 2;
 }
+/// "WxH": two whole numbers from 16 to 8192.
+const CLI::Validator imageSize(
+    [](std::string& text) -> std::string {
+      const std::size_t x = text.find('x');
+      int w = 0, h = 0;
+      try {
+        size_t used = 0;
+        if (x == std::string::npos) throw std::invalid_argument("no x");
+        w = std::stoi(text.substr(0, x), &used);
+        if (used != x) throw std::invalid_argument("width");
+        h = std::stoi(text.substr(x + 1), &used);
+        if (used != text.size() - x - 1) throw std::invalid_argument("height");
+      } catch (const std::exception&) {
+        return "must be WIDTHxHEIGHT in pixels (e.g. 640x480), got " + text;
+      }
+      if (w < 16 || h < 16 || w > 8192 || h > 8192)
+        return "width and height must be from 16 to 8192 pixels, got " + text;
+      return {};
+    },
+    "WxH");
+
+/// "AZ,EL" or "AZ,EL,DIST": degrees, degrees in (-90, 90), metres > 0.
+const CLI::Validator cameraAngles(
+    [](std::string& text) -> std::string {
+      std::vector<double> values;
+      std::size_t begin = 0;
+      try {
+        while (begin <= text.size()) {
+          const std::size_t comma = std::min(text.find(',', begin), text.size());
+          size_t used = 0;
+          const std::string part = text.substr(begin, comma - begin);
+          values.push_back(std::stod(part, &used));
+          if (used != part.size() || !std::isfinite(values.back())) throw std::invalid_argument(part);
+          begin = comma + 1;
+        }
+      } catch (const std::exception&) {
+        return "must be AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, metres), got " + text;
+      }
+      if (values.size() < 2 || values.size() > 3)
+        return "must be AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, metres), got " + text;
+      if (!(values[1] > -90 && values[1] < 90)) return "elevation must be between -90 and 90 degrees, got " + text;
+      if (values.size() == 3 && !(values[2] > 0)) return "distance must be > 0 m, got " + text;
+      return {};
+    },
+    "AZ,EL[,DIST]");
+
+CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const std::string& names) {
+  CLI::App* cmd = app.add_subcommand(
+      "render", "Run a scene and draw it offscreen into PNG pictures: cloth, obstacles, bodies, a ground grid");
+  cmd->allow_extras();
+  cmd->add_option("scene", render.run.scene, "A built-in scene (" + names + ") or a JSON scene file");
+  cmd->add_option("--out", render.out, "Directory of the pictures (created): frame_000000.png, ...")->required();
+  cmd->add_option("--every", render.every,
+                  "A picture every K steps (K >= 1; default: 30 pictures per simulated second); picture 0 is the "
+                  "initial state")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            try {
+              size_t used = 0;
+              const long long value = std::stoll(text, &used);
+              if (used == text.size() && value >= 1) return {};
+            } catch (const std::exception&) {
+            }
+            return "must be a whole number >= 1, got " + text;
+          },
+          "INTEGER >= 1"));
+  cmd->add_option_function<std::string>(
+         "--size",
+         [&render](const std::string& text) {
+           const std::size_t x = text.find('x');
+           render.width = std::stoi(text.substr(0, x));
+           render.height = std::stoi(text.substr(x + 1));
+         },
+         "Picture size in pixels, WIDTHxHEIGHT (default 640x480)")
+      ->check(imageSize);
+  cmd->add_option_function<std::string>(
+         "--camera",
+         [&render](const std::string& text) {
+           std::vector<double> values;
+           std::size_t begin = 0;
+           while (begin <= text.size()) {
+             const std::size_t comma = std::min(text.find(',', begin), text.size());
+             values.push_back(std::stod(text.substr(begin, comma - begin)));
+             begin = comma + 1;
+           }
+           render.azimuth = values[0];
+           render.elevation = values[1];
+           if (values.size() == 3) render.distance = values[2];
+         },
+         "AZIMUTH,ELEVATION[,DISTANCE]: degrees about the vertical (0: from +z), degrees above the horizon, "
+         "metres from the centre (default 35,22 and the distance that frames the whole run)")
+      ->check(cameraAngles);
+  cmd->add_option("--supersample", render.supersample,
+                  "Draw at N times the size and average down (anti-aliasing; 1 to 4, default 2)")
+      ->check(CLI::Range(1, 4));
+  cmd->add_option("--scene-size", render.run.size,
+                  "Built-in scenes: grid side (cloth) or particle count (rope), what `weft run --size` sets")
+      ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
+  cmd->add_option("--steps", render.run.steps, "Number of fixed steps (default: the scene's)")
+      ->check(nonNegativeInteger);
+  cmd->add_option("--dt", render.run.dt, "Time step in seconds (> 0)")->check(finitePositive);
+  std::vector<std::string> integrators;
+  for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
+  cmd->add_option("--integrator", render.run.integrator, "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit")
+      ->check(CLI::IsMember(integrators));
+  cmd->add_option("--precision", render.run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
+  cmd->add_option("--threads", render.run.threads, "Worker threads of the simulation (0 = all cores)")
+      ->check(CLI::Range(0, 1024));
+  return cmd;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -195,6 +306,9 @@ int main(int argc, char** argv) {
                        "Also write how the work was spread: one CSV row per task (phase, estimated cost, rank, host, "
                        "wall seconds); with mpirun -np N the ranks share the sweep (docs/distributed.md)");
 
+  weftcli::RenderOptions render;
+  CLI::App* renderCmd = addRenderCommand(app, render, names);
+
   weftcli::SoakOptions soak;
   CLI::App* soakCmd = app.add_subcommand(
       "soak",
@@ -217,9 +331,12 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   if (cmd->parsed() && !cmd->remaining().empty()) return reportExtras(*cmd, cmd->remaining());
+  if (renderCmd->parsed() && !renderCmd->remaining().empty())
+    return reportExtras(*renderCmd, renderCmd->remaining());
   try {
     if (studyCmd->parsed()) return weftcli::runStudy(study);
     if (soakCmd->parsed()) return weftcli::runSoak(soak);
+    if (renderCmd->parsed()) return weftcli::renderScene(render);
     return weftcli::runScene(run);
   } catch (const std::exception& e) {
     std::cerr << "weft: " << e.what() << "\n";

@@ -193,7 +193,8 @@ class Progress {
   bool drawn_ = false;
 };
 
-/// The scene with the command line's explicit settings applied over it.
+}  // namespace
+
 weft::SceneSpec sceneFor(const RunOptions& o) {
   // A built-in scene name, else a scene file (anything that exists or ends in .json);
   // anything else is an unknown scene name (builtinSceneSpec lists the known ones).
@@ -240,6 +241,8 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
   if (o.every) spec.output.every = *o.every;
   return spec;
 }
+
+namespace {
 
 std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
   std::vector<std::string> names;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "weft/integrate/integrator.hpp"
+#include "weft/io/scene.hpp"
 
 namespace weftcli {
 
@@ -35,6 +36,11 @@ struct RunOptions {
   std::optional<std::string> checkpoint;  // write a checkpoint here: every `every` steps, at the end, when interrupted
   std::optional<std::string> resume;      // continue the run from this checkpoint
 };
+
+/// The scene `options.scene` names (a built-in one, else a scene file) with the options
+/// given applied over its values: what `weft run`, `weft render` and `weft view` simulate.
+/// Throws for a bad scene (std::exception naming file, field and value).
+weft::SceneSpec sceneFor(const RunOptions& options);
 
 /// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
 /// 0 when every step succeeded, 3 when the stability check stopped the run, 130 / 143 when
