@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <limits>
 #include <stdexcept>
@@ -12,6 +13,7 @@
 #include "render_command.hpp"
 #include "run_command.hpp"
 #include "soak_command.hpp"
+#include "strip_command.hpp"
 #include "study_command.hpp"
 #include "weft/integrate/integrator.hpp"
 #include "weft/io/scene.hpp"
@@ -306,6 +308,10 @@ int main(int argc, char** argv) {
                        "Also write how the work was spread: one CSV row per task (phase, estimated cost, rank, host, "
                        "wall seconds); with mpirun -np N the ranks share the sweep (docs/distributed.md)");
 
+  std::string stripDirectory;
+  studyCmd->add_option("--strip", stripDirectory,
+                       "Also draw the flag under each integrator at the same time into DIR/strip.png (and strip.md): "
+                       "needs weft built with rendering");
   weftcli::RenderOptions render;
   CLI::App* renderCmd = addRenderCommand(app, render, names);
 
@@ -334,7 +340,14 @@ int main(int argc, char** argv) {
   if (renderCmd->parsed() && !renderCmd->remaining().empty())
     return reportExtras(*renderCmd, renderCmd->remaining());
   try {
-    if (studyCmd->parsed()) return weftcli::runStudy(study);
+    if (studyCmd->parsed()) {
+      const int code = weftcli::runStudy(study);
+      // Under mpirun the strip is drawn once, by rank 0 (the launcher's rank variables).
+      const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
+      if (!rank) rank = std::getenv("PMI_RANK");
+      if (code != 0 || stripDirectory.empty() || (rank && std::string(rank) != "0")) return code;
+      return weftcli::writeIntegratorStrip(stripDirectory, study.quick);
+    }
     if (soakCmd->parsed()) return weftcli::runSoak(soak);
     if (renderCmd->parsed()) return weftcli::renderScene(render);
     return weftcli::runScene(run);
