@@ -128,6 +128,7 @@ TEST(Render, BadInputsAreRefusedNamingTheOption) {
       {"flag --size 640 --out '" + dir + "'", "--size", "640"},
       {"flag --every 0 --out '" + dir + "'", "--every", "0"},
       {"flag --camera 10,95 --out '" + dir + "'", "--camera", "10,95"},
+      {"flag --framing sideways --out '" + dir + "'", "--framing", "sideways"},
       {"flag --out '" + file + "/pictures'", "--out", file + "/pictures"},
       {"nosuchscene --out '" + dir + "'", "nosuchscene", "flag"},
       {"flag", "--out", "required"},

@@ -198,6 +198,10 @@ CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const 
          "AZIMUTH,ELEVATION[,DISTANCE]: degrees about the vertical (0: from +z), degrees above the horizon, "
          "metres from the centre (default 35,22 and the distance that frames the whole run)")
       ->check(cameraAngles);
+  cmd->add_option_function<std::string>(
+         "--framing", [&render](const std::string& text) { render.framingEach = text == "each"; },
+         "run: one camera frames the whole run (default) | each: every picture framed on its own (stills)")
+      ->check(CLI::IsMember({"run", "each"}));
   cmd->add_option("--supersample", render.supersample,
                   "Draw at N times the size and average down (anti-aliasing; 1 to 4, default 2)")
       ->check(CLI::Range(1, 4));
@@ -209,8 +213,9 @@ CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const 
   cmd->add_option("--dt", render.run.dt, "Time step in seconds (> 0)")->check(finitePositive);
   std::vector<std::string> integrators;
   for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
-  cmd->add_option("--integrator", render.run.integrator, "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit")
-      ->check(CLI::IsMember(integrators));
+  std::string integratorList;
+  for (const std::string& name : integrators) integratorList += (integratorList.empty() ? "" : " | ") + name;
+  cmd->add_option("--integrator", render.run.integrator, integratorList)->check(CLI::IsMember(integrators));
   cmd->add_option("--precision", render.run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", render.run.threads, "Worker threads of the simulation (0 = all cores)")
       ->check(CLI::Range(0, 1024));

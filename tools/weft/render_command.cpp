@@ -81,9 +81,10 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
   const double simulateSeconds = seconds(simulateStart);
 
   const auto drawStart = Clock::now();
-  const FramedView view = frameView(drawer, snapshots, o.width, o.height, o.azimuth, o.elevation, o.distance);
+  FramedView view = frameView(drawer, snapshots, o.width, o.height, o.azimuth, o.elevation, o.distance);
   weftrender::DrawFrame frame;
   for (std::size_t f = 0; f < snapshots.size(); ++f) {
+    if (o.framingEach) view = frameView(drawer, {snapshots[f]}, o.width, o.height, o.azimuth, o.elevation, o.distance);
     const weftrender::Image image = drawSnapshot(drawer, snapshots[f], view, renderer, context, frame);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06zu.png", f);
@@ -97,7 +98,7 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
       << " in " << o.out << " (frame_000000.png ...), every " << every << " steps of "
       << weft::integratorName(sim.integrator()) << " at dt " << sim.timeStep() << " s, " << sim.state().time
       << " s simulated\n"
-      << "  camera       azimuth " << view.camera.azimuth * 180 / std::numbers::pi << " deg, elevation "
+      << "  camera       " << (o.framingEach ? "(the last picture's) " : "") << "azimuth " << view.camera.azimuth * 180 / std::numbers::pi << " deg, elevation "
       << view.camera.elevation * 180 / std::numbers::pi << " deg, distance " << view.camera.distance
       << " m, looking at (" << view.camera.target.x() << ", " << view.camera.target.y() << ", "
       << view.camera.target.z() << ")\n"

@@ -16,6 +16,7 @@ struct RenderOptions {
   int width = 640, height = 480;      // pixels
   std::optional<double> azimuth, elevation, distance;  // --camera AZ,EL[,DIST]: degrees, degrees, m
   int supersample = 2;                // rendered at this multiple of the size, then averaged down
+  bool framingEach = false;           // --framing each: a camera per picture (default: one for the run)
 };
 
 /// Runs the scene, keeping a snapshot every `every` steps, frames the camera on everything
