@@ -51,6 +51,12 @@ FramedView frameView(const SceneDrawer& drawer, const std::vector<SceneSnapshot>
                      std::optional<double> distance) {
   Bounds box;
   for (const SceneSnapshot& s : snapshots) box.add(drawer.framedBounds(s));
+  return frameBox(drawer, box, width, height, azimuthDegrees, elevationDegrees, distance);
+}
+
+FramedView frameBox(const SceneDrawer& drawer, const Bounds& box, int width, int height,
+                    std::optional<double> azimuthDegrees, std::optional<double> elevationDegrees,
+                    std::optional<double> distance) {
   constexpr double kRadian = std::numbers::pi / 180;
   FramedView view;
   view.width = width;

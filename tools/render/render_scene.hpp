@@ -57,6 +57,11 @@ FramedView frameView(const SceneDrawer& drawer, const std::vector<SceneSnapshot>
                      std::optional<double> azimuthDegrees, std::optional<double> elevationDegrees,
                      std::optional<double> distance);
 
+/// The same for a box given directly (weft view frames the start of a run, extended).
+FramedView frameBox(const SceneDrawer& drawer, const Bounds& box, int width, int height,
+                    std::optional<double> azimuthDegrees, std::optional<double> elevationDegrees,
+                    std::optional<double> distance);
+
 /// Draws one snapshot into the context (sized view.width x view.height times an integer
 /// supersampling factor) and returns the averaged-down picture. `frame` is scratch.
 Image drawSnapshot(const SceneDrawer& drawer, const SceneSnapshot& snapshot, const FramedView& view,

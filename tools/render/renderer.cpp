@@ -1,5 +1,6 @@
 #include "renderer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -119,6 +120,7 @@ Renderer::~Renderer() {
       if (*b) gl_.DeleteBuffers(1, b);
   };
   release(ground_);
+  release(overlay_);
   for (Slot& s : slots_) release(s);
   gl_.DeleteVertexArrays(1, &emptyArray_);
   for (GLuint p : {meshProgram_, groundProgram_, backgroundProgram_}) gl_.DeleteProgram(p);
@@ -295,6 +297,52 @@ void Renderer::draw(const DrawFrame& frame, const OrbitCamera& camera, const Vie
     gl_.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.indices.size()), GL_UNSIGNED_INT, nullptr);
   }
   gl_.BindVertexArray(0);
+  gl_.Disable(GL_SCISSOR_TEST);
+}
+
+}  // namespace weftrender
+
+namespace weftrender {
+
+void Renderer::drawOverlay(const std::vector<float>& triangles, const Eigen::Vector4f& colour,
+                           const Viewport& vp) {
+  if (triangles.empty()) return;
+  if (overlay_.vertexArray == 0) overlay_ = makeSlot();
+  // The 2D points as 3D positions at z = 0 (normals unused by the flat colour).
+  DrawMesh mesh;
+  const std::size_t n = triangles.size() / 2;
+  mesh.positions.resize(3 * n);
+  mesh.normals.assign(3 * n, 0.f);
+  mesh.indices.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    mesh.positions[3 * i] = triangles[2 * i];
+    mesh.positions[3 * i + 1] = triangles[2 * i + 1];
+    mesh.positions[3 * i + 2] = 0.f;
+    mesh.indices[i] = static_cast<std::uint32_t>(i);
+  }
+  upload(mesh, overlay_);
+  // Pixels to clip space.
+  Eigen::Matrix4f pixels = Eigen::Matrix4f::Identity();
+  pixels(0, 0) = 2.f / static_cast<float>(vp.width);
+  pixels(1, 1) = 2.f / static_cast<float>(vp.height);
+  pixels(0, 3) = -1.f;
+  pixels(1, 3) = -1.f;
+  const Eigen::Matrix4f identity = Eigen::Matrix4f::Identity();
+  gl_.Viewport(vp.x, vp.y, vp.width, vp.height);
+  gl_.Scissor(vp.x, vp.y, vp.width, vp.height);
+  gl_.Enable(GL_SCISSOR_TEST);
+  gl_.Disable(GL_DEPTH_TEST);
+  gl_.Enable(GL_BLEND);
+  gl_.BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  gl_.UseProgram(meshProgram_);
+  gl_.UniformMatrix4fv(gl_.GetUniformLocation(meshProgram_, "viewProjection"), 1, GL_FALSE, pixels.data());
+  gl_.UniformMatrix4fv(gl_.GetUniformLocation(meshProgram_, "model"), 1, GL_FALSE, identity.data());
+  // The flat path draws a colour as it is when its alpha is > 0.
+  const Eigen::Vector4f c(colour.x(), colour.y(), colour.z(), std::max(colour.w(), 1e-3f));
+  gl_.Uniform4fv(gl_.GetUniformLocation(meshProgram_, "flatColour"), 1, c.data());
+  gl_.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(n), GL_UNSIGNED_INT, nullptr);
+  gl_.BindVertexArray(0);
+  gl_.Disable(GL_BLEND);
   gl_.Disable(GL_SCISSOR_TEST);
 }
 

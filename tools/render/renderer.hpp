@@ -46,6 +46,9 @@ class Renderer {
   /// the tubes; `lightAzimuth` (rad) places the key light (see the design note).
   void draw(const DrawFrame& frame, const OrbitCamera& camera, const Viewport& viewport, float sceneRadius,
             float lightAzimuth);
+  /// Flat 2D triangles over what is drawn (x, y pairs in pixels from the viewport's bottom
+  /// left; text_overlay.hpp makes text of them), in `colour` (sRGB, alpha blended).
+  void drawOverlay(const std::vector<float>& triangles, const Eigen::Vector4f& colour, const Viewport& viewport);
 
  private:
   struct Slot {
@@ -59,7 +62,7 @@ class Renderer {
   GlApi gl_;
   GLuint meshProgram_ = 0, groundProgram_ = 0, backgroundProgram_ = 0;
   GLuint emptyArray_ = 0;  // core profile: a vertex array must be bound to draw
-  Slot ground_;
+  Slot ground_, overlay_;
   std::vector<Slot> slots_;
 };
 
