@@ -413,8 +413,11 @@ void drawReadout(weftrender::Renderer& renderer, const weftrender::Viewport& vp,
   std::snprintf(line, sizeof line, "%s  %s  dt %.3g s  %d thread%s", r.integrator.c_str(), r.precision.c_str(), r.dt,
                 r.threads, r.threads == 1 ? "" : "s");
   lines.emplace_back(line);
-  std::snprintf(line, sizeof line, "%.3f ms/step  %lld steps/frame  x%.2f real time%s", r.msPerStep,
-                static_cast<long long>(r.steps), realTime, paused ? "  paused" : "");
+  if (r.ok)
+    std::snprintf(line, sizeof line, "%.3f ms/step  %lld steps/frame  x%.2f real time%s", r.msPerStep,
+                  static_cast<long long>(r.steps), realTime, paused ? "  paused" : "");
+  else
+    std::snprintf(line, sizeof line, "%.3f ms/step  stopped (r resets)", r.msPerStep);
   lines.emplace_back(line);
   std::snprintf(line, sizeof line, "t %.3f s  energy %.5g J", r.time, r.energy);
   lines.emplace_back(line);
