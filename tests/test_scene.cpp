@@ -39,7 +39,7 @@ const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
 const std::vector<std::string> kExamples = {
     "rope",      "flag-wind",  "cloth-mesh",    "hanging-cloth", "drape",          "drape-mesh",       "rope-on-pegs",
     "fast-ball", "tablecloth", "ball-on-brick", "stack",         "rigid-showcase", "tablecloth-trick", "hammock",
-    "pile",      "fold",       "two-cloths"};
+    "pile",      "fold",       "two-cloths",    "flag-wind-pd"};
 
 std::string examplePath(const std::string& name) { return kScenes + "/" + name + ".json"; }
 
@@ -819,6 +819,10 @@ const std::vector<BadScene>& badScenes() {
       {"too_many_threads", top(R"(, "threads": 2000)"), "threads", "got 2000"},
       {"cg_tolerance_one", top(R"(, "integration": {"cg_tolerance": 1})"), "integration.cg_tolerance", "got 1"},
       {"zero_atol", top(R"(, "integration": {"atol": 0})"), "integration.atol", "got 0"},
+      {"zero_projective_iterations", top(R"(, "integration": {"projective_iterations": 0})"),
+       "integration.projective_iterations", "got 0"},
+      {"fractional_projective_iterations", top(R"(, "integration": {"projective_iterations": 2.5})"),
+       "integration.projective_iterations", "2.5"},
       {"zero_every", top(R"(, "output": {"directory": "x", "every": 0})"), "output.every", "got 0"},
       {"empty_output_directory", top(R"(, "output": {"directory": ""})"), "output.directory", "must not be empty"},
       {"unknown_format", top(R"(, "output": {"format": "vtk"})"), "output.format", R"("vtk")"},

@@ -231,7 +231,8 @@ TYPED_TEST(SimulationTest, WithoutTheStretchCheckTheFailureIsNonFinite) {
 TYPED_TEST(SimulationTest, EveryIntegratorFailsCleanlyAtAHugeStep) {
   using S = TypeParam;
   for (const IntegratorKind kind : kAllIntegrators) {
-    // Implicit Euler is meant not to fail at any step (ImplicitEuler.* tests), and adaptive
+    // Implicit Euler and projective dynamics are meant not to fail at any step
+    // (ImplicitEuler.*, Projective.* tests), and adaptive
     // rk45 would substep its way through: here rk45 takes fixed steps.
     if (!integratorIsExplicit(kind)) continue;
     SCOPED_TRACE(integratorName(kind));
@@ -332,7 +333,14 @@ TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {
       EXPECT_EQ(sim.forceEvaluations(), 25 * last.forceEvaluations + (kind == IntegratorKind::VelocityVerlet ? 1 : 0));
       EXPECT_EQ(total.substeps, 25);
     }
-    EXPECT_EQ(total.linearIterations > 0, kind == IntegratorKind::ImplicitEuler);
+    EXPECT_EQ(total.linearIterations > 0, !integratorIsExplicit(kind));
+    if (kind == IntegratorKind::Projective) {
+      // One global solve per iteration; the matrix factorised once for the run's step.
+      EXPECT_EQ(total.linearIterations, 25 * IntegratorOptions{}.projectiveIterations);
+      EXPECT_EQ(total.factorizations, 1);
+    } else {
+      EXPECT_EQ(total.factorizations, 0);
+    }
     // Gravity pulls the free particles down; the pinned corners stay.
     EXPECT_LT(sim.state().x.col(1).minCoeff(), S(0));
     EXPECT_EQ(sim.state().x(0, 1), S(0));

@@ -65,6 +65,7 @@ nlohmann::ordered_json workJson(const weft::StepWork& w, std::int64_t steps) {
   j["linear_iterations"] = static_cast<double>(w.linearIterations) / n;
   j["linear_unconverged"] = static_cast<double>(w.linearUnconverged) / n;
   j["max_linear_residual"] = w.linearResidual;
+  j["factorizations"] = w.factorizations;  // projective: in all (one per step size), not per step
   j["max_error_estimate"] = w.errorEstimate;
   return j;
 }
@@ -77,7 +78,11 @@ std::string workLine(const weft::StepWork& w, std::int64_t steps) {
   if (w.substeps != steps || w.rejectedSubsteps > 0)
     out << ", " << static_cast<double>(w.substeps) / n << " substeps (" << static_cast<double>(w.rejectedSubsteps) / n
         << " rejected), largest error estimate " << w.errorEstimate;
-  if (w.linearIterations > 0 || w.linearResidual > 0)
+  if (w.factorizations > 0)  // projective dynamics
+    out << ", " << static_cast<double>(w.linearIterations) / n
+        << " global solves (largest last-iteration change relative to the step's displacement " << w.linearResidual
+        << "), " << w.factorizations << " factorisation" << (w.factorizations == 1 ? "" : "s");
+  else if (w.linearIterations > 0 || w.linearResidual > 0)
     out << ", " << static_cast<double>(w.linearIterations) / n << " CG iterations (largest residual "
         << w.linearResidual << ", " << w.linearUnconverged << " solves at the cap)";
   return out.str();
@@ -222,6 +227,7 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
   if (o.absoluteTolerance) sim.integration.absoluteTolerance = *o.absoluteTolerance;
   if (o.linearTolerance) sim.integration.linearTolerance = *o.linearTolerance;
   if (o.maxLinearIterations) sim.integration.maxLinearIterations = static_cast<weft::Index>(*o.maxLinearIterations);
+  if (o.projectiveIterations) sim.integration.projectiveIterations = *o.projectiveIterations;
   if (o.fixedStep) sim.integration.adaptive = false;
   if (o.drag) sim.effects.drag = *o.drag;
   if (o.precision) spec.precision = *o.precision == "float" ? weft::Precision::Float : weft::Precision::Double;

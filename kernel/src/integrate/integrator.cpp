@@ -33,6 +33,7 @@ constexpr IntegratorTraits kTraits[] = {
     // solution (bisection to 1e-15; tests/test_integrate.cpp measures it).
     {IntegratorKind::Rk45, "rk45", 5, 6, 0.99718900863267},
     {IntegratorKind::ImplicitEuler, "implicit", 1, 1, std::numeric_limits<double>::infinity()},
+    {IntegratorKind::Projective, "projective", 1, 1, std::numeric_limits<double>::infinity()},
 };
 static_assert(std::size(kTraits) == std::size(kAllIntegrators), "one traits row per integrator");
 
@@ -86,6 +87,8 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
   if (!(std::isfinite(o.linearTolerance) && o.linearTolerance >= 0 && o.linearTolerance < 1))
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
   if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
+  if (o.projectiveIterations < 1 || o.projectiveIterations > 10000)
+    bad("projectiveIterations", std::to_string(o.projectiveIterations), "must be in 1..10000");
 }
 
 template <class S>
@@ -108,6 +111,8 @@ std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, const Model<S
       return detail::makeRk45<S>(particleCount, options);
     case IntegratorKind::ImplicitEuler:
       return detail::makeImplicitEuler<S>(model, options);
+    case IntegratorKind::Projective:
+      return detail::makeProjective<S>(model, options);
   }
   throw std::invalid_argument("makeIntegrator: unknown integrator kind");
 }

@@ -40,5 +40,7 @@ template <class S>
 std::unique_ptr<Integrator<S>> makeRk45(Index n, const IntegratorOptions& options);
 template <class S>
 std::unique_ptr<Integrator<S>> makeImplicitEuler(const Model<S>& model, const IntegratorOptions& options);
+template <class S>
+std::unique_ptr<Integrator<S>> makeProjective(const Model<S>& model, const IntegratorOptions& options);
 
 }  // namespace weft::detail

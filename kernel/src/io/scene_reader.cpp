@@ -203,7 +203,8 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   if (root.contains("integration")) {
     const Json& j = root["integration"];
     const std::string f = "integration";
-    r.object(j, f, {"adaptive", "rtol", "atol", "min_substep", "max_substeps", "cg_tolerance", "cg_max_iterations"});
+    r.object(j, f, {"adaptive", "rtol", "atol", "min_substep", "max_substeps", "cg_tolerance", "cg_max_iterations",
+                      "projective_iterations"});
     IntegratorOptions& io = o.integration;
     io.adaptive = r.boolean(j, f, "adaptive", io.adaptive);
     io.relativeTolerance = r.anyNumber(j, f, "rtol", io.relativeTolerance);
@@ -213,12 +214,15 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.linearTolerance = r.anyNumber(j, f, "cg_tolerance", io.linearTolerance);
     io.maxLinearIterations =
         static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
+    io.projectiveIterations =
+        static_cast<int>(r.integer(j, f, "projective_iterations", io.projectiveIterations, 1, 10000));
     // Ranges are the kernel's; the integer counts keep the file's cap of 2^30.
     r.kernelRules(j, f, "IntegratorOptions.", [&] { validateIntegratorOptions(io); },
                   {{"relativeTolerance", "rtol"},
                    {"absoluteTolerance", "atol"},
                    {"linearTolerance", "cg_tolerance"},
-                   {"maxLinearIterations", "cg_max_iterations"}});
+                   {"maxLinearIterations", "cg_max_iterations"},
+                   {"projectiveIterations", "projective_iterations"}});
   }
   if (root.contains("stability")) {
     const Json& j = root["stability"];

@@ -26,6 +26,10 @@
 //                    (M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0), solved by
 //                    matrix-free preconditioned conjugate gradients; x1 = x0 + h v1
 //                    (one force evaluation, one Jacobian product per CG iteration)  order 1
+//   Projective       projective dynamics (Liu et al. 2013): backward Euler on positions by
+//                    local steps (each spring projected to its rest length) alternating
+//                    with a global solve whose matrix M + h c I + (h^2 ks + h kd) L is
+//                    factorised once per h; a fixed number of iterations    order 1
 //
 // See docs/integrators.md for stability limits and when to use which.
 #pragma once
@@ -39,10 +43,19 @@
 
 namespace weft {
 
-enum class IntegratorKind { ExplicitEuler, SymplecticEuler, Midpoint, Rk4, VelocityVerlet, Rk45, ImplicitEuler };
+enum class IntegratorKind {
+  ExplicitEuler,
+  SymplecticEuler,
+  Midpoint,
+  Rk4,
+  VelocityVerlet,
+  Rk45,
+  ImplicitEuler,
+  Projective
+};
 
 /// Short name used on the command line: euler, symplectic, midpoint, rk4, verlet, rk45,
-/// implicit.
+/// implicit, projective.
 const char* integratorName(IntegratorKind kind);
 /// Parses a short name; throws std::invalid_argument naming the value otherwise.
 IntegratorKind parseIntegrator(const std::string& name);
@@ -60,12 +73,14 @@ int integratorForceEvaluations(IntegratorKind kind);
 /// For adaptive Rk45 the limit applies to its substeps, which the controller chooses.
 double integratorStabilityLimit(IntegratorKind kind);
 /// True for the methods whose stability limit is finite (all explicit ones).
-inline bool integratorIsExplicit(IntegratorKind kind) { return kind != IntegratorKind::ImplicitEuler; }
+inline bool integratorIsExplicit(IntegratorKind kind) {
+  return kind != IntegratorKind::ImplicitEuler && kind != IntegratorKind::Projective;
+}
 /// Every integrator, in the order above (for parameterised tests and sweeps).
 inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEuler,  IntegratorKind::SymplecticEuler,
                                                      IntegratorKind::Midpoint,       IntegratorKind::Rk4,
                                                      IntegratorKind::VelocityVerlet, IntegratorKind::Rk45,
-                                                     IntegratorKind::ImplicitEuler};
+                                                     IntegratorKind::ImplicitEuler,  IntegratorKind::Projective};
 
 /// Parameters of the adaptive and the implicit methods (the others have none). Checked by
 /// validateIntegratorOptions; the Simulation checks them at construction.
@@ -80,6 +95,8 @@ struct IntegratorOptions {
   // ImplicitEuler
   double linearTolerance = 1e-6;  // CG stops when |r| <= linearTolerance |b| (filtered 2-norms)
   Index maxLinearIterations = 1000;
+  // Projective: local/global iterations per step (one global solve each, >= 1)
+  int projectiveIterations = 10;
 };
 /// Throws std::invalid_argument naming the field and the value of the first bad option.
 void validateIntegratorOptions(const IntegratorOptions& options);
@@ -89,9 +106,13 @@ struct StepWork {
   Index forceEvaluations = 0;   // calls of ForceField::accelerations
   Index substeps = 0;           // accepted (sub)steps: 1 for fixed-step methods
   Index rejectedSubsteps = 0;   // Rk45: trial substeps rejected by the error control
-  Index linearIterations = 0;   // ImplicitEuler: CG iterations (one Jacobian product each)
+  Index linearIterations = 0;   // ImplicitEuler: CG iterations (one Jacobian product each);
+                                // Projective: global solves (one per iteration)
   Index linearUnconverged = 0;  // ImplicitEuler: solves that stopped at maxLinearIterations
-  double linearResidual = 0;    // ImplicitEuler: final |r| / |b| of the solve (largest if summed)
+  double linearResidual = 0;    // ImplicitEuler: final |r| / |b| of the solve; Projective: the
+                                // last iteration's largest coordinate change over the step's
+                                // largest displacement (largest if summed)
+  Index factorizations = 0;     // Projective: global matrices factorised (a new time step h)
   double errorEstimate = 0;     // Rk45: largest scaled error of an accepted substep (<= 1)
   bool failed = false;          // Rk45: error control gave up (minSubstep or maxSubsteps); the
                                 // result must not be used
@@ -102,6 +123,7 @@ struct StepWork {
     rejectedSubsteps += o.rejectedSubsteps;
     linearIterations += o.linearIterations;
     linearUnconverged += o.linearUnconverged;
+    factorizations += o.factorizations;
     linearResidual = linearResidual > o.linearResidual ? linearResidual : o.linearResidual;
     errorEstimate = errorEstimate > o.errorEstimate ? errorEstimate : o.errorEstimate;
     failed = failed || o.failed;
@@ -133,7 +155,7 @@ class Integrator {
 };
 
 /// An integrator with its stage buffers sized for `model` (which must outlive it when the
-/// kind is ImplicitEuler: its spring Jacobian reads the model's springs). Throws
+/// kind is ImplicitEuler or Projective: they read the model's springs). Throws
 /// std::invalid_argument for bad options.
 template <class S>
 std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, const Model<S>& model,
