@@ -359,6 +359,33 @@ TYPED_TEST(ModelTest, MassTooSmallForThePrecisionThrows) {
   expectInvalid([&] { (void)b.build(); }, "mass of particle [0]", isFloat ? "e-40" : "e-311");
 }
 
+TYPED_TEST(ModelTest, ARefusedBuildLeavesTheBuilderAsItWas) {
+  using S = TypeParam;
+  // Every value is checked before the builder's arrays are handed over to the model (and
+  // released): a refused build loses nothing. Here the last spring's stiffness is beyond
+  // float; in double the same builder builds.
+  ModelBuilder<S> b;
+  ClothGridSpec spec;
+  spec.width = 5;
+  spec.height = 4;
+  addClothGrid(b, spec);
+  b.addSpring(0, 19, {1e300, 0});
+  const Index springs = b.springCount();
+  const Vec3d last = b.position(19);
+  if constexpr (std::is_same_v<S, float>) {
+    expectInvalid([&] { (void)b.build(); }, "stiffness of spring", "1e+300");
+    EXPECT_EQ(b.particleCount(), 20);
+    EXPECT_EQ(b.springCount(), springs);
+    EXPECT_EQ(b.triangleCount(), 24);
+    EXPECT_EQ(b.position(19).x, last.x);
+  } else {
+    const ModelAndState<S> built = b.build();
+    EXPECT_EQ(built.model.springCount(), springs);
+    EXPECT_EQ(built.state.x(19, 0), last.x);
+    EXPECT_EQ(b.particleCount(), 0) << "a build leaves the builder empty";
+  }
+}
+
 TYPED_TEST(ModelTest, BadRopeSpecsThrow) {
   using S = TypeParam;
   RopeSpec spec;

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <tbb/task_arena.h>
+
 #include "bvh_internal.hpp"
 #include "closest_point.hpp"
 #include "weft/collide/bvh.hpp"
@@ -215,21 +217,28 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
   // leaves, to the leaf pairs, by index arithmetic only (no branch on the kinds of nodes).
   const Index tasks = static_cast<Index>(front.size());
   if (static_cast<Index>(scratch.taskPairs_.size()) < tasks) scratch.taskPairs_.resize(static_cast<size_t>(tasks));
+  const size_t slots = static_cast<size_t>(std::max(1, exec.threadCount()));
+  if (scratch.threadLevels_.size() < slots) scratch.threadLevels_.resize(slots);
   exec.parallelFor(tasks, 1, [&](Index begin, Index end) {
     const BvhNode<S>* nodesA = A.nodes_.data();
     const BvhNode<S>* nodesB = B.nodes_.data();
     const Aabb<S>* leavesA = &A.leafBox(0);
     const Aabb<S>* leavesB = &B.leafBox(0);
+    // The thread's slot in the executor's arena (0 on the serial path, which may run
+    // outside it): no two threads of one pass share a slot.
+    const int slot = tbb::this_task_arena::current_thread_index();
+    BvhPairScratch::ThreadLevels& mine =
+        scratch.threadLevels_[slot >= 0 && static_cast<size_t>(slot) < slots ? static_cast<size_t>(slot) : 0];
     for (Index k = begin; k < end; ++k) {
       BvhPairScratch::TaskPairs& work = scratch.taskPairs_[static_cast<size_t>(k)];
-      std::vector<Task>* current = &work.level[0];
-      std::vector<Task>* following = &work.level[1];
+      std::vector<Task>* current = &mine.level[0];
+      std::vector<Task>* following = &mine.level[1];
       if (current->empty()) current->resize(1);
-      if (work.pairs.size() < 4) work.pairs.resize(4);
+      if (mine.leaves.size() < 4) mine.leaves.resize(4);
       Index found = 0, count = 0;
       const Task start = front[static_cast<size_t>(k)];
       if ((start[0] & start[1]) < 0) {
-        work.pairs[static_cast<size_t>(found++)] = {~start[0], ~start[1]};
+        mine.leaves[static_cast<size_t>(found++)] = {~start[0], ~start[1]};
       } else {
         (*current)[static_cast<size_t>(count++)] = start;
       }
@@ -238,11 +247,11 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
       while (count > 0) {
         const size_t bound = 4 * static_cast<size_t>(count);  // a pair has at most 4 subtasks
         if (following->size() < bound) following->resize(bound);
-        if (work.pairs.size() < static_cast<size_t>(found) + bound)
-          work.pairs.resize(static_cast<size_t>(found) + bound);
+        if (mine.leaves.size() < static_cast<size_t>(found) + bound)
+          mine.leaves.resize(static_cast<size_t>(found) + bound);
         const Task* in = current->data();
         Task* nextLevel = following->data();
-        TrianglePair* leaves = work.pairs.data() + found;
+        TrianglePair* leaves = mine.leaves.data() + found;
         Index n = 0, f = 0;
         for (Index i = 0; i < count; ++i) {
           const Index a = in[i][0], b = in[i][1];
@@ -277,16 +286,18 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
         count = n;
         std::swap(current, following);
       }
-      // The filter and the slot -> triangle mapping, in place.
+      // The filter and the slot -> triangle mapping, in place, then the task's own copy.
       Index kept = 0;
       for (Index i = 0; i < found; ++i) {
-        const TrianglePair slots = work.pairs[static_cast<size_t>(i)];
-        if (!keep(slots.first, slots.second)) continue;
-        Index ta = A.slotTriangle_[static_cast<size_t>(slots.first)];
-        Index tb = B.slotTriangle_[static_cast<size_t>(slots.second)];
+        const TrianglePair pair = mine.leaves[static_cast<size_t>(i)];
+        if (!keep(pair.first, pair.second)) continue;
+        Index ta = A.slotTriangle_[static_cast<size_t>(pair.first)];
+        Index tb = B.slotTriangle_[static_cast<size_t>(pair.second)];
         if (kSelf && ta > tb) std::swap(ta, tb);
-        work.pairs[static_cast<size_t>(kept++)] = {ta, tb};
+        mine.leaves[static_cast<size_t>(kept++)] = {ta, tb};
       }
+      if (work.pairs.size() < static_cast<size_t>(kept)) work.pairs.resize(static_cast<size_t>(kept));
+      std::copy(mine.leaves.begin(), mine.leaves.begin() + kept, work.pairs.begin());
       work.count = kept;
     }
   });

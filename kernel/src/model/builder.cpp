@@ -1,9 +1,12 @@
 #include "weft/model/builder.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
+#include <vector>
 
 #include "../core/text.hpp"
 
@@ -107,6 +110,69 @@ void ModelBuilder<S>::pin(Index i) {
   pinned_[i] = 1;
 }
 
+/// Checks the recorded grid layout against the springs exactly (the stencil strategy trusts
+/// it): throws for a layout that does not fit; false when the model is not exactly that one
+/// grid (springs outside the families or in two, particles after the grid's), which then
+/// gets no layout (Auto picks Gather) instead of silently wrong forces.
+template <class S>
+bool ModelBuilder<S>::checkGridLayout(const GridLayout<S>& g) const {
+  const Index n = particleCount();
+  const Index m = springCount();
+  if (static_cast<long long>(g.width) * g.height > n)
+    throw std::invalid_argument("ModelBuilder::build: grid layout " + std::to_string(g.width) + " x " +
+                                std::to_string(g.height) + " exceeds the particle count " + std::to_string(n));
+  // Every family must stay inside the grid, so the stencil never reads out of bounds.
+  for (const GridFamily<S>& f : g.families) {
+    const bool rowsInside = (f.rowOffset >= 0) && (f.rowOffset < g.height);
+    const bool columnsInside = (f.columnOffset > -g.width) && (f.columnOffset < g.width);
+    const bool forward = (f.rowOffset > 0) || (f.columnOffset > 0);
+    const bool springsInside = (f.firstSpring >= 0) && (f.springCount >= 0) && (f.firstSpring <= m - f.springCount);
+    const bool inside = rowsInside && columnsInside && forward && springsInside;
+    if (!inside)
+      throw std::invalid_argument("ModelBuilder::build: grid layout family (rowOffset " + std::to_string(f.rowOffset) +
+                                  ", columnOffset " + std::to_string(f.columnOffset) + ", firstSpring " +
+                                  std::to_string(f.firstSpring) + ", springCount " + std::to_string(f.springCount) +
+                                  ") does not fit a " + std::to_string(g.width) + " x " + std::to_string(g.height) +
+                                  " grid of " + std::to_string(m) + " springs");
+  }
+  std::vector<char> covered(static_cast<size_t>(m), 0);  // springs claimed by a family
+  bool exactCover = true;
+  for (const GridFamily<S>& f : g.families) {
+    Index s = f.firstSpring;
+    for (Index r = 0; r + f.rowOffset < g.height; ++r) {
+      for (Index c = std::max(0, -f.columnOffset); c < std::min(g.width, g.width - f.columnOffset); ++c, ++s) {
+        const size_t k = static_cast<size_t>(s);
+        const bool ok = s < m && springA_[k] == r * g.width + c &&
+                        springB_[k] == (r + f.rowOffset) * g.width + c + f.columnOffset &&
+                        static_cast<S>(rest_[k]) == f.restLength && static_cast<S>(stiffness_[k]) == f.stiffness &&
+                        static_cast<S>(damping_[k]) == f.damping;
+        if (!ok)
+          throw std::invalid_argument("ModelBuilder::build: spring " + std::to_string(s) +
+                                      " does not match the recorded grid layout");
+        exactCover = exactCover && !covered[k];
+        covered[k] = 1;
+      }
+    }
+    if (s - f.firstSpring != f.springCount)
+      throw std::invalid_argument("ModelBuilder::build: grid family spring count mismatch");
+  }
+  exactCover = exactCover && static_cast<long long>(g.width) * g.height == n;
+  for (Index s = 0; s < m && exactCover; ++s) exactCover = covered[static_cast<size_t>(s)] != 0;
+  return exactCover;
+}
+
+template <class S>
+void ModelBuilder<S>::reserve(Index particles, Index springs, Index triangles) {
+  const auto more = [](auto& v, Index count) { v.reserve(v.size() + static_cast<size_t>(std::max<Index>(count, 0))); };
+  for (auto* v : {&px_, &py_, &pz_, &vx_, &vy_, &vz_, &mass_}) more(*v, particles);
+  more(pinned_, particles);
+  more(springA_, springs);
+  more(springB_, springs);
+  for (auto* v : {&rest_, &stiffness_, &damping_}) more(*v, springs);
+  more(kind_, springs);
+  more(triangles_, triangles);
+}
+
 template <class S>
 ModelAndState<S> ModelBuilder<S>::build() {
   const Index n = particleCount();
@@ -134,40 +200,63 @@ ModelAndState<S> ModelBuilder<S>::build() {
     return static_cast<S>(value);
   };
 
-  ModelAndState<S> out;
-  Model<S>& model = out.model;
-  State<S>& state = out.state;
-  model.mass_.resize(n);
-  model.inverseMass_.resize(n);
-  state.x.resize(n, 3);
-  state.v.resize(n, 3);
+  // Everything that can be refused is checked first, on the builder's own arrays, so that a
+  // refused build leaves the builder untouched.
   for (Index i = 0; i < n; ++i) {
-    model.mass_[i] = scalar(mass_[i], "mass of particle", i);
+    (void)scalar(mass_[i], "mass of particle", i);
     if (!pinned_[i] && !(1.0 / mass_[i] <= static_cast<double>(std::numeric_limits<S>::max())))
       reject("ModelBuilder::build", indexed("mass of particle", i), mass_[i],
              "large enough that 1/mass is finite in the chosen precision");
+    (void)coordinate(px_[i], "position.x of particle", i);
+    (void)coordinate(py_[i], "position.y of particle", i);
+    (void)coordinate(pz_[i], "position.z of particle", i);
+    if (!pinned_[i]) {
+      (void)scalar(vx_[i], "velocity.x of particle", i);
+      (void)scalar(vy_[i], "velocity.y of particle", i);
+      (void)scalar(vz_[i], "velocity.z of particle", i);
+    }
+  }
+  for (Index s = 0; s < m; ++s) {
+    (void)scalar(rest_[s], "restLength of spring", s);
+    (void)scalar(stiffness_[s], "stiffness of spring", s);
+    (void)scalar(damping_[s], "damping of spring", s);
+  }
+  const bool isGrid = grid_ && checkGridLayout(*grid_);
+
+  ModelAndState<S> out;
+  Model<S>& model = out.model;
+  State<S>& state = out.state;
+  // Each array is released as soon as the model holds its copy (the largest scenes are
+  // springs above all: a 256^2 cloth has 390k).
+  const auto take = [](auto& from, auto& to) {
+    using To = std::remove_reference_t<decltype(to)>;
+    to.resize(static_cast<Index>(from.size()));
+    for (size_t k = 0; k < from.size(); ++k) to[static_cast<Index>(k)] = static_cast<typename To::Scalar>(from[k]);
+    std::remove_reference_t<decltype(from)>().swap(from);
+  };
+  model.mass_.resize(n);
+  model.inverseMass_.resize(n);
+  for (Index i = 0; i < n; ++i) {
+    model.mass_[i] = static_cast<S>(mass_[i]);
     model.inverseMass_[i] = pinned_[i] ? S(0) : static_cast<S>(1.0 / mass_[i]);
-    state.x(i, 0) = coordinate(px_[i], "position.x of particle", i);
-    state.x(i, 1) = coordinate(py_[i], "position.y of particle", i);
-    state.x(i, 2) = coordinate(pz_[i], "position.z of particle", i);
-    state.v(i, 0) = pinned_[i] ? S(0) : scalar(vx_[i], "velocity.x of particle", i);
-    state.v(i, 1) = pinned_[i] ? S(0) : scalar(vy_[i], "velocity.y of particle", i);
-    state.v(i, 2) = pinned_[i] ? S(0) : scalar(vz_[i], "velocity.z of particle", i);
+  }
+  state.x.resize(n, 3);
+  state.v.resize(n, 3);
+  for (Index i = 0; i < n; ++i) {
+    state.x(i, 0) = static_cast<S>(px_[i]);
+    state.x(i, 1) = static_cast<S>(py_[i]);
+    state.x(i, 2) = static_cast<S>(pz_[i]);
+    state.v(i, 0) = pinned_[i] ? S(0) : static_cast<S>(vx_[i]);
+    state.v(i, 1) = pinned_[i] ? S(0) : static_cast<S>(vy_[i]);
+    state.v(i, 2) = pinned_[i] ? S(0) : static_cast<S>(vz_[i]);
   }
   Springs<S>& sp = model.springs_;
-  sp.a.resize(m);
-  sp.b.resize(m);
-  sp.restLength.resize(m);
-  sp.stiffness.resize(m);
-  sp.damping.resize(m);
-  sp.kind = kind_;
-  for (Index s = 0; s < m; ++s) {
-    sp.a[s] = springA_[s];
-    sp.b[s] = springB_[s];
-    sp.restLength[s] = scalar(rest_[s], "restLength of spring", s);
-    sp.stiffness[s] = scalar(stiffness_[s], "stiffness of spring", s);
-    sp.damping[s] = scalar(damping_[s], "damping of spring", s);
-  }
+  take(springA_, sp.a);
+  take(springB_, sp.b);
+  take(rest_, sp.restLength);
+  take(stiffness_, sp.stiffness);
+  take(damping_, sp.damping);
+  sp.kind = std::move(kind_);
 
   Triangles& tr = model.triangles_;
   const Index nt = triangleCount();
@@ -179,54 +268,7 @@ ModelAndState<S> ModelBuilder<S>::build() {
     tr.b[t] = triangles_[t][1];
     tr.c[t] = triangles_[t][2];
   }
-
-  if (grid_) {
-    // The stencil strategy trusts the layout, so check it against the springs exactly.
-    const GridLayout<S>& g = *grid_;
-    if (static_cast<long long>(g.width) * g.height > n)
-      throw std::invalid_argument("ModelBuilder::build: grid layout " + std::to_string(g.width) + " x " +
-                                  std::to_string(g.height) + " exceeds the particle count " + std::to_string(n));
-    // Every family must stay inside the grid, so the stencil never reads out of bounds.
-    for (const GridFamily<S>& f : g.families) {
-      const bool rowsInside = (f.rowOffset >= 0) && (f.rowOffset < g.height);
-      const bool columnsInside = (f.columnOffset > -g.width) && (f.columnOffset < g.width);
-      const bool forward = (f.rowOffset > 0) || (f.columnOffset > 0);
-      const bool springsInside = (f.firstSpring >= 0) && (f.springCount >= 0) && (f.firstSpring <= m - f.springCount);
-      const bool inside = rowsInside && columnsInside && forward && springsInside;
-      if (!inside)
-        throw std::invalid_argument("ModelBuilder::build: grid layout family (rowOffset " +
-                                    std::to_string(f.rowOffset) + ", columnOffset " + std::to_string(f.columnOffset) +
-                                    ", firstSpring " + std::to_string(f.firstSpring) + ", springCount " +
-                                    std::to_string(f.springCount) + ") does not fit a " + std::to_string(g.width) +
-                                    " x " + std::to_string(g.height) + " grid of " + std::to_string(m) + " springs");
-    }
-    std::vector<char> covered(static_cast<size_t>(m), 0);  // springs claimed by a family
-    bool exactCover = true;
-    for (const GridFamily<S>& f : g.families) {
-      Index s = f.firstSpring;
-      for (Index r = 0; r + f.rowOffset < g.height; ++r) {
-        for (Index c = std::max(0, -f.columnOffset); c < std::min(g.width, g.width - f.columnOffset); ++c, ++s) {
-          const bool ok =
-              s < m && sp.a[s] == r * g.width + c && sp.b[s] == (r + f.rowOffset) * g.width + c + f.columnOffset &&
-              sp.restLength[s] == f.restLength && sp.stiffness[s] == f.stiffness && sp.damping[s] == f.damping;
-          if (!ok)
-            throw std::invalid_argument("ModelBuilder::build: spring " + std::to_string(s) +
-                                        " does not match the recorded grid layout");
-          exactCover = exactCover && !covered[s];
-          covered[s] = 1;
-        }
-      }
-      if (s - f.firstSpring != f.springCount)
-        throw std::invalid_argument("ModelBuilder::build: grid family spring count mismatch");
-    }
-    // GridStencil evaluates the families' springs and nothing else: a model with springs
-    // outside them (e.g. added after addClothGrid) or in two families is not a regular
-    // grid, so it gets no layout (Auto then picks Gather) instead of silently wrong forces.
-    // Particles after the grid's (a second cloth, a rope) make it not a single grid either.
-    exactCover = exactCover && static_cast<long long>(g.width) * g.height == n;
-    for (Index s = 0; s < m && exactCover; ++s) exactCover = covered[s] != 0;
-    if (exactCover) model.grid_ = std::move(grid_);
-  }
+  if (isGrid) model.grid_ = std::move(grid_);
 
   *this = ModelBuilder<S>();
   return out;

@@ -72,6 +72,10 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
   const Index W = spec.width, H = spec.height;
   const Index first = builder.particleCount();  // the grid layout is recorded only when 0
   const double m = spec.totalMass / static_cast<double>(W * H);
+  // Exact counts: structural (two families), shear (two), bend (two), two triangles a cell.
+  const Index springs = (W - 1) * H + W * (H - 1) + (spec.shearSprings ? 2 * (W - 1) * (H - 1) : 0) +
+                        (spec.bendSprings ? (W - 2) * H + W * (H - 2) : 0);
+  builder.reserve(W * H, springs, 2 * (W - 1) * (H - 1));
   for (Index r = 0; r < H; ++r)
     for (Index c = 0; c < W; ++c) {
       const double a = spec.spacing * static_cast<double>(c), b = spec.spacing * static_cast<double>(r);

@@ -147,12 +147,19 @@ class BvhPairScratch {
   /// One task's pairs, on a cache line of its own: tasks on different threads append to
   /// their vectors concurrently, and neighbouring vector headers would share a line.
   struct alignas(64) TaskPairs {
-    std::vector<TrianglePair> pairs;             // [0, count): leaf pairs whose boxes overlap, then the reported pairs
+    std::vector<TrianglePair> pairs;  // [0, count): the task's reported pairs
+    Index count = 0;                  // (vectors are only grown: their sizes are capacities)
+  };
+  /// One thread's expansion buffers, reused by every task it runs: the leaf pairs whose
+  /// boxes overlap are filtered there, so a query that reports few of them (the exact
+  /// intersection test) holds only the largest task's candidates per thread, not all.
+  struct alignas(64) ThreadLevels {
+    std::vector<TrianglePair> leaves;            // leaf pairs whose boxes overlap (slots)
     std::vector<std::array<Index, 2>> level[2];  // breadth-first levels of node pairs
-    Index count = 0;                             // (vectors are only grown: their sizes are capacities)
   };
   std::vector<std::array<Index, 2>> front_, next_;  // tasks (pairs of node references)
   std::vector<TaskPairs> taskPairs_;
+  std::vector<ThreadLevels> threadLevels_;  // one per thread slot of the executor
   std::vector<std::uint64_t> keys_, keysSwap_;  // the radix sort of the result
   std::vector<Index> histogram_;
 };

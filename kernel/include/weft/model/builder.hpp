@@ -52,11 +52,19 @@ class ModelBuilder {
   Index triangleCount() const { return static_cast<Index>(triangles_.size()); }
   Vec3d position(Index i) const;
 
-  /// Builds the immutable model and its initial state. The builder is left empty.
+  /// Makes room for this many more particles, springs and triangles (an optimisation only:
+  /// a large cloth then holds no spare capacity while it is assembled).
+  void reserve(Index particles, Index springs, Index triangles);
+
+  /// Builds the immutable model and its initial state. The builder is left empty. Every
+  /// value is checked before anything is moved, so a build that throws leaves the builder
+  /// as it was; the builder's arrays are released one by one as the model takes them, so a
+  /// large model does not need both copies at once.
   ModelAndState<S> build();
 
  private:
   void checkParticle(const char* what, Index i) const;
+  bool checkGridLayout(const GridLayout<S>& layout) const;
   std::vector<double> px_, py_, pz_, vx_, vy_, vz_, mass_;
   std::vector<char> pinned_;
   std::vector<Index> springA_, springB_;
