@@ -68,6 +68,8 @@ WEFT_INTEGRATOR(BM_Integrator_Rk45_float, float, IntegratorKind::Rk45);
 WEFT_INTEGRATOR(BM_Integrator_Rk45_double, double, IntegratorKind::Rk45);
 WEFT_INTEGRATOR(BM_Integrator_Implicit_float, float, IntegratorKind::ImplicitEuler);
 WEFT_INTEGRATOR(BM_Integrator_Implicit_double, double, IntegratorKind::ImplicitEuler);
+WEFT_INTEGRATOR(BM_Integrator_Projective_float, float, IntegratorKind::Projective);
+WEFT_INTEGRATOR(BM_Integrator_Projective_double, double, IntegratorKind::Projective);
 
 // ---------------------------------------------------------------------------------------
 // BM_SimulatedSecond_*: what a simulated second costs on the 128^2 flag at each method's
@@ -75,8 +77,8 @@ WEFT_INTEGRATOR(BM_Integrator_Implicit_double, double, IntegratorKind::ImplicitE
 // (fixed steps; a probe is 400 steps from the initial state that the stability check does
 // not stop) and cached; the counter wall_s_per_sim_s = wall time / (steps x dt).
 // Adaptive rk45 runs frames of 1/60 s at its default tolerances (its substeps are its
-// own choice); implicit Euler runs 1/60 s steps (a real-time frame; it is stable far
-// beyond). Explicit Euler is left out: its stable step on this cloth is ~1e-6 s.
+// own choice); implicit Euler and projective dynamics (10 iterations) run 1/60 s steps
+// (a real-time frame; they are stable far beyond). Explicit Euler is left out: its stable step on this cloth is ~1e-6 s.
 // ---------------------------------------------------------------------------------------
 
 template <class S>
@@ -111,7 +113,7 @@ void BM_SimulatedSecond(benchmark::State& st) {
   weft::SimulationOptions options;
   options.integrator = Kind;
   options.threads = static_cast<int>(st.range(1));
-  if (Kind == weft::IntegratorKind::Rk45 || Kind == weft::IntegratorKind::ImplicitEuler)
+  if (Kind == weft::IntegratorKind::Rk45 || !weft::integratorIsExplicit(Kind))
     options.dt = 1.0 / 60;
   else
     options.dt = largestStableFlagStep<S>(Kind, size);
@@ -135,7 +137,7 @@ void BM_SimulatedSecond(benchmark::State& st) {
   const double estimate = weft::estimateStableTimeStep(sim.model(), Kind);
   st.counters["dt_over_estimate"] = estimate > 0 && std::isfinite(estimate) ? options.dt / estimate : 0.0;
   st.counters["force_evals_per_step"] = static_cast<double>(work.forceEvaluations) / n;
-  st.counters["cg_iterations_per_step"] = static_cast<double>(work.linearIterations) / n;
+  st.counters["cg_iterations_per_step"] = static_cast<double>(work.linearIterations) / n;  // projective: solves
   st.counters["substeps_per_step"] = static_cast<double>(work.substeps) / n;
   // (No allocation counter here: with a few iterations of a long rk45 frame the
   // framework's own allocations would dominate it. BM_Integrator_* and the tests count.)
@@ -161,6 +163,51 @@ WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk45_float, float, IntegratorKind::Rk45
 WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Rk45_double, double, IntegratorKind::Rk45);
 WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Implicit_float, float, IntegratorKind::ImplicitEuler);
 WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Implicit_double, double, IntegratorKind::ImplicitEuler);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Projective_float, float, IntegratorKind::Projective);
+WEFT_SIMULATED_SECOND(BM_SimulatedSecond_Projective_double, double, IntegratorKind::Projective);
+
+// ---------------------------------------------------------------------------------------
+// BM_Projective_Frame: one 1/60 s step of projective dynamics on the flag, by grid side and
+// iteration count (double), against one implicit-Euler step of the same frame in the same
+// binary (BM_SimulatedSecond_Implicit_double). Counters: the last iteration's relative
+// change (how unconverged the count leaves the step) and the factor's share of the memory.
+// ---------------------------------------------------------------------------------------
+
+void BM_Projective_Frame(benchmark::State& st) {
+  const auto size = static_cast<weft::Index>(st.range(0));
+  weft::SimulationOptions options;
+  options.integrator = weft::IntegratorKind::Projective;
+  options.threads = static_cast<int>(st.range(2));
+  options.dt = 1.0 / 60;
+  options.integration.projectiveIterations = static_cast<int>(st.range(1));
+  weft::Simulation<double> sim(weft::makeFlag<double>(size), options);
+  const weft::State<double> initial = sim.state();
+  sim.run(2);  // warm up: the factorisation
+  std::int64_t steps = 0;
+  double change = 0;
+  const std::int64_t allocationsBefore = weftbench::allocationCount();
+  for (auto _ : st) {
+    if (!sim.step().ok()) {
+      st.SkipWithError(sim.status().message().c_str());
+      break;
+    }
+    change = std::max(change, sim.lastWork().linearResidual);
+    if (++steps % 120 == 0) {
+      st.PauseTiming();
+      sim.setState(initial);
+      st.ResumeTiming();
+    }
+  }
+  st.counters["allocs_per_step"] =
+      steps ? static_cast<double>(weftbench::allocationCount() - allocationsBefore) / static_cast<double>(steps) : 0;
+  st.counters["last_iteration_change"] = change;
+  st.counters["particles"] = static_cast<double>(sim.model().particleCount());
+}
+BENCHMARK(BM_Projective_Frame)
+    ->ArgNames({"size", "iterations", "threads"})
+    ->ArgsProduct({{64, 128}, {1, 10, 20}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_Textbook_Rk4_double(benchmark::State& st) {
   const auto size = static_cast<weft::Index>(st.range(0));

