@@ -110,6 +110,14 @@ TEST(Cli, WorkPerStepReportsTheAdaptiveAndImplicitCounters) {
   EXPECT_EQ(i["work_per_step"]["force_evaluations"], 1.0);
   EXPECT_GT(i["work_per_step"]["linear_iterations"].get<double>(), 0.0);
   EXPECT_LE(i["work_per_step"]["max_linear_residual"].get<double>(), 1e-8);
+
+  const nlohmann::json p = runJson("run flag --size 16 --steps 5 --dt 0.01 --integrator projective --pd-iterations 7");
+  ASSERT_TRUE(p.is_object());
+  EXPECT_EQ(p["status"], "ok");
+  EXPECT_TRUE(p["stable_dt_estimate"].is_null()) << "projective dynamics has no stability limit: " << p.dump();
+  EXPECT_EQ(p["work_per_step"]["force_evaluations"], 1.0);
+  EXPECT_EQ(p["work_per_step"]["linear_iterations"], 7.0);
+  EXPECT_EQ(p["work_total"]["factorizations"], 1) << "one step size, one factorisation";
 }
 
 TEST(Cli, StudyWritesItsTablesWithEveryIntegratorAndAgreesAcrossThreads) {
@@ -518,6 +526,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
         BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
         BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
+        BadOption{"flag --integrator projective --pd-iterations 0", "--pd-iterations", "0"},
         BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},
         BadOption{"flag --out /proc/self --format gltf", "--out /proc/self --format gltf",
                   "cannot open for writing '/proc/self/run.glb.frames.tmp'"},

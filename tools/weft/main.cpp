@@ -242,7 +242,8 @@ int main(int argc, char** argv) {
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
   std::vector<std::string> integrators;
   for (const weft::IntegratorKind kind : weft::kAllIntegrators) integrators.emplace_back(weft::integratorName(kind));
-  cmd->add_option("--integrator", run.integrator, "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit")
+  cmd->add_option("--integrator", run.integrator,
+                  "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit | projective")
       ->check(CLI::IsMember(integrators));
   cmd->add_option("--rtol", run.relativeTolerance, "rk45: relative tolerance per coordinate (>= 0)")
       ->check(finiteNonNegative);
@@ -253,6 +254,9 @@ int main(int argc, char** argv) {
       ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
   cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--pd-iterations", run.projectiveIterations,
+                  "projective: local/global iterations per step, one global solve each (1..10000; default 10)")
+      ->check(CLI::Range(1, 10000));
   cmd->add_option("--precision", run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   cmd->add_option("--threads", run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--drag", run.drag, "Viscous drag on every particle, N s/m (>= 0; 0 = none, free)")
