@@ -5,8 +5,9 @@
 // integrator and precision:
 //   * the largest stable dt, by bisection on dt (a run over the scene's duration that the
 //     stability check does not stop), next to the kernel's estimate;
-//   * a sweep of dt below it (rk45: of its tolerance, at frames of ~1/60 s; implicit:
-//     of dt up to far beyond the explicit limits), each point run on every thread count:
+//   * a sweep of dt below it (rk45: of its tolerance, at frames of ~1/60 s; implicit and
+//     projective: of dt up to far beyond the explicit limits), each point run on every
+//     thread count:
 //     error against the reference at T/2 and T, energy error, wall time per simulated
 //     second, work counters, and whether the state is bitwise the same as on 1 thread.
 // Output: study.csv (one row per run), study.md (tables), study.png/.svg (plot by
@@ -17,6 +18,8 @@
 // docs/distributed.md); the files are the same as a single process writes but for the
 // timing columns and the host each point ran on.
 #include "study_command.hpp"
+
+#include <sched.h>
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +33,7 @@
 #include <optional>
 #include <sstream>
 #include <string_view>
+#include <thread>
 
 #include "ranks.hpp"
 #include "study_schedule.hpp"
@@ -169,7 +173,7 @@ std::optional<double> largestStableStep(bool isFloat, SceneDef scene, Integrator
   const auto stable = [&](double dt) {
     // (Implicit Euler's probes run for the duration only: 1000 of its long steps would be
     // minutes of CG on the flag, and it has no growth to wait for.)
-    scene.duration = kind == IntegratorKind::ImplicitEuler ? duration : std::max(duration, 1000 * dt);
+    scene.duration = !weft::integratorIsExplicit(kind) ? duration : std::max(duration, 1000 * dt);
     const RunResult r = runAny(isFloat, scene, kind, dt, io, threads);
     return r.status.ok() && r.energy <= energy0 + energyMargin;
   };
@@ -211,9 +215,9 @@ void pack(Packer& out, const Row& r) {
   for (const std::string* text : {&r.scene, &r.integrator, &r.precision, &r.status, &r.host}) out.put(*text);
   out.put(r.threads);
   out.put(r.steps);
-  for (const double v : {r.dt, r.tolerance, r.simulated, r.error, r.errorHalf, r.energyError, r.wall,
-                         r.wallPerSimulated, r.forceEvaluations, r.linearIterations, r.rejected, r.substeps,
-                         r.stableMeasured, r.stableEstimate})
+  for (const double v :
+       {r.dt, r.tolerance, r.simulated, r.error, r.errorHalf, r.energyError, r.wall, r.wallPerSimulated,
+        r.forceEvaluations, r.linearIterations, r.rejected, r.substeps, r.stableMeasured, r.stableEstimate})
     out.put(v);
   out.put(r.sameAsOneThread);
 }
@@ -223,9 +227,9 @@ Row unpackRow(Unpacker& in) {
   for (std::string* text : {&r.scene, &r.integrator, &r.precision, &r.status, &r.host}) *text = in.getString();
   r.threads = in.get<int>();
   r.steps = in.get<Index>();
-  for (double* v : {&r.dt, &r.tolerance, &r.simulated, &r.error, &r.errorHalf, &r.energyError, &r.wall,
-                    &r.wallPerSimulated, &r.forceEvaluations, &r.linearIterations, &r.rejected, &r.substeps,
-                    &r.stableMeasured, &r.stableEstimate})
+  for (double* v :
+       {&r.dt, &r.tolerance, &r.simulated, &r.error, &r.errorHalf, &r.energyError, &r.wall, &r.wallPerSimulated,
+        &r.forceEvaluations, &r.linearIterations, &r.rejected, &r.substeps, &r.stableMeasured, &r.stableEstimate})
     *v = in.get<double>();
   r.sameAsOneThread = in.get<bool>();
   return r;
@@ -233,7 +237,8 @@ Row unpackRow(Unpacker& in) {
 
 void pack(Packer& out, const weft::Vec3Array<double>& x) {
   out.put<Index>(x.rows());
-  out.put(std::string_view(reinterpret_cast<const char*>(x.data()), sizeof(double) * static_cast<std::size_t>(x.size())));
+  out.put(
+      std::string_view(reinterpret_cast<const char*>(x.data()), sizeof(double) * static_cast<std::size_t>(x.size())));
 }
 
 weft::Vec3Array<double> unpackPositions(Unpacker& in) {
@@ -249,8 +254,8 @@ weft::Vec3Array<double> unpackPositions(Unpacker& in) {
 // Estimated costs, in units of about one spring (or particle) visited by a force
 // evaluation: only their order and ratios within a phase matter (largest first). Measured
 // against the actual times in docs/distributed.md.
-constexpr double kDispatch = 500;   // a parallel pass's start and end, in those units
-constexpr double kRunSetUp = 2e4;   // building a Simulation (model copy, arena)
+constexpr double kDispatch = 500;  // a parallel pass's start and end, in those units
+constexpr double kRunSetUp = 2e4;  // building a Simulation (model copy, arena)
 
 /// Work of one force evaluation of the scene.
 double evaluationWork(const weft::Model<double>& model) {
@@ -263,11 +268,18 @@ double evaluationWork(const weft::Model<double>& model) {
 /// and rope take 8 to 400).
 double evaluationsPerStep(IntegratorKind kind, double dtOverRk4Limit) {
   switch (kind) {
-    case IntegratorKind::Midpoint: return 2;
-    case IntegratorKind::Rk4: return 4;
-    case IntegratorKind::Rk45: return 6;
-    case IntegratorKind::ImplicitEuler: return 2 + 1.5 * std::clamp(10 * dtOverRk4Limit, 1.0, 400.0);
-    default: return 1;
+    case IntegratorKind::Midpoint:
+      return 2;
+    case IntegratorKind::Rk4:
+      return 4;
+    case IntegratorKind::Rk45:
+      return 6;
+    case IntegratorKind::ImplicitEuler:
+      return 2 + 1.5 * std::clamp(10 * dtOverRk4Limit, 1.0, 400.0);
+    case IntegratorKind::Projective:  // 10 solves, each about 8 evaluations' worth (the flag's factor)
+      return 1 + 10 * 8;
+    default:
+      return 1;
   }
 }
 
@@ -278,8 +290,8 @@ namespace {
 struct SceneData {
   Reference ref;
   double omegaMax = 0, energy0 = 0, energyMargin = 0;
-  double work = 0;       // estimated work of one force evaluation
-  double rk4Limit = 0;   // the kernel's RK4 estimate, s
+  double work = 0;      // estimated work of one force evaluation
+  double rk4Limit = 0;  // the kernel's RK4 estimate, s
 };
 
 /// One scene x integrator x precision: its stability limit, then its points.
@@ -301,6 +313,13 @@ std::string cellName(const std::vector<SceneDef>& scenes, const Cell& c) {
 }
 
 int study(const StudyOptions& o, const Ranks& ranks, bool& written);
+
+/// CPUs this process may run on (its affinity mask; the machine's if that cannot be read).
+int usableCpuCount() {
+  cpu_set_t set;
+  if (sched_getaffinity(0, sizeof set, &set) == 0) return CPU_COUNT(&set);
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
 
 }  // namespace
 
@@ -347,6 +366,33 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
       return 2;
     }
   }
+  const int maxThreads = *std::max_element(o.threads.begin(), o.threads.end());
+  {
+    // oneTBB runs no more threads than the process's CPU mask allows, and mpirun binds each
+    // rank to one core by default: a "2 threads" run would quietly take one. Refused under
+    // MPI (naming the ranks), a warning in a single process (as before, it still runs).
+    Packer mine;
+    mine.put(usableCpuCount());
+    mine.put(ranks.host());
+    std::string tooFew;
+    const std::vector<std::string> all = ranks.allGather(mine.bytes());
+    for (std::size_t r = 0; r < all.size(); ++r) {
+      Unpacker in(all[r]);
+      const int cpus = in.get<int>();
+      const std::string host = in.getString();
+      if (cpus < maxThreads)
+        tooFew += (tooFew.empty() ? "" : ", ") +
+                  std::string(ranks.distributed() ? "rank " + std::to_string(r) + " on " : "") + host + ": " +
+                  std::to_string(cpus) + " CPU(s)";
+    }
+    if (!tooFew.empty() && ranks.root())
+      std::cerr << "weft study: --threads asks for " << maxThreads << " threads, but " << tooFew
+                << (ranks.distributed() ? " (mpirun binds each rank to one core by default: give each rank its "
+                                          "threads with --map-by slot:PE=" +
+                                              std::to_string(maxThreads) + ", or --bind-to none; docs/distributed.md)\n"
+                                        : "; the runs with more threads than that are timed on fewer\n");
+    if (!tooFew.empty() && ranks.distributed()) return 2;
+  }
   const bool quick = o.quick;
   std::vector<SceneDef> scenes;
   {
@@ -368,7 +414,6 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
                                         scene.name.substr(0, scene.name == "oscillator" ? 10 : 4)) != o.scenes.end())
         scenes.push_back(scene);
   }
-  const int maxThreads = *std::max_element(o.threads.begin(), o.threads.end());
   const std::vector<double> dtFactors =
       quick ? std::vector<double>{0.9, 0.3, 0.1} : std::vector<double>{0.9, 0.5, 0.25, 0.125, 1.0 / 16, 1.0 / 32};
   const std::vector<double> implicitFactors =
@@ -392,8 +437,8 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
       data[s].energy0 = weft::energy(model.model, model.state, scenes[s].gravity).total();
       // RK4 at dt and dt / 2 (reference()): three runs' worth at dt.
       const double steps = scenes[s].duration / ((quick ? 0.1 : 0.05) * data[s].rk4Limit);
-      tasks.push_back({"reference " + scenes[s].name,
-                       scenes[s].analytic ? 1.0 : 3 * steps * 4 * data[s].work + 2 * kRunSetUp});
+      tasks.push_back(
+          {"reference " + scenes[s].name, scenes[s].analytic ? 1.0 : 3 * steps * 4 * data[s].work + 2 * kRunSetUp});
     }
     const std::vector<std::string> results = runSpread(
         ranks, "references", tasks,
@@ -446,11 +491,11 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
                                              : kind == IntegratorKind::Midpoint    ? 4.0
                                                                                    : 1.0);
           const double cost =
-              kind == IntegratorKind::ImplicitEuler
+              !weft::integratorIsExplicit(kind)
                   ? 2 * evaluationsPerStep(kind, duration / 2 / data[s].rk4Limit) * data[s].work + kRunSetUp
-                  : (bisections + 2) * (std::max(duration / expected, 1000.0) * evaluationsPerStep(kind, 1) *
-                                            data[s].work +
-                                        kRunSetUp);
+                  : (bisections + 2) *
+                        (std::max(duration / expected, 1000.0) * evaluationsPerStep(kind, 1) * data[s].work +
+                         kRunSetUp);
           tasks.push_back({"limit " + cellName(scenes, c), cost});
           cells.push_back(c);
         }
@@ -462,7 +507,7 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
           const SceneDef& scene = scenes[c.scene];
           const SceneData& d = data[c.scene];
           std::optional<double> measured;
-          if (c.kind == IntegratorKind::ImplicitEuler)
+          if (!weft::integratorIsExplicit(c.kind))
             measured = largestStableStep(c.isFloat, scene, c.kind, c.scale, scene.duration / 2, bisections, maxThreads,
                                          d.energy0, d.energyMargin);
           else if (c.kind != IntegratorKind::Rk45)
@@ -487,8 +532,8 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
   for (std::size_t s = 0; s < scenes.size(); ++s)
     referenceTable << "| " << scenes[s].name << " | " << scenes[s].duration << " | "
                    << (scenes[s].analytic ? std::string("exact solution")
-                                          : "RK4 double, dt " + fmt(data[s].ref.dt) + " s; vs 2 dt: " +
-                                                fmt(data[s].ref.selfCheck) + " m")
+                                          : "RK4 double, dt " + fmt(data[s].ref.dt) +
+                                                " s; vs 2 dt: " + fmt(data[s].ref.selfCheck) + " m")
                    << " |\n";
   for (const Cell& c : cells) {
     const double limit = c.measured.value_or(NAN);
@@ -517,7 +562,7 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
       // tolerances only shrink the substeps towards minSubstep.
       for (const double tol : tolerances)
         if (!c.isFloat || tol >= 1e-6) mine.push_back({ci, frame, tol});
-    } else if (c.kind == IntegratorKind::ImplicitEuler) {
+    } else if (!weft::integratorIsExplicit(c.kind)) {
       for (const double f : implicitFactors)
         if (f * d.rk4Limit <= scene.duration / 2) mine.push_back({ci, f * d.rk4Limit, 0});
     } else if (c.measured && std::isfinite(limit)) {
@@ -536,8 +581,7 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
         const double stable = std::isfinite(limit) ? p.dt / limit : 1.0;
         perStep *= std::max(1.0, stable) * std::max(1.0, 2 * std::pow(1e-6 / p.tolerance, 0.2));
       }
-      const double cost = repetitions * static_cast<double>(o.threads.size()) *
-                          (steps * perStep * d.work + kRunSetUp);
+      const double cost = repetitions * static_cast<double>(o.threads.size()) * (steps * perStep * d.work + kRunSetUp);
       std::ostringstream name;
       name << "point " << cellName(scenes, c) << " dt " << fmt(p.dt);
       if (p.tolerance > 0) name << " tol " << fmt(p.tolerance);
@@ -621,8 +665,8 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
     for (const Row& r : rows)
       csv << r.scene << ',' << r.integrator << ',' << r.precision << ',' << r.threads << ',' << r.dt << ','
           << r.tolerance << ',' << r.steps << ',' << r.simulated << ',' << fmt(r.error, 9) << ',' << fmt(r.errorHalf, 9)
-          << ',' << fmt(r.energyError, 9) << ',' << r.wall << ',' << fmt(r.wallPerSimulated, 9) << ',' << r.host
-          << ',' << r.forceEvaluations << ',' << r.linearIterations << ',' << r.rejected << ',' << r.substeps << ','
+          << ',' << fmt(r.energyError, 9) << ',' << r.wall << ',' << fmt(r.wallPerSimulated, 9) << ',' << r.host << ','
+          << r.forceEvaluations << ',' << r.linearIterations << ',' << r.rejected << ',' << r.substeps << ','
           << fmt(r.stableMeasured, 9) << ',' << fmt(r.stableEstimate, 9) << ',' << r.status << ','
           << (r.sameAsOneThread ? 1 : 0) << '\n';
     if (!csv) {
@@ -636,8 +680,7 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
   md << "# weft study (" << (quick ? "quick" : "full") << ")\n\n"
      << "Error: oscillator = phase-space error / amplitude at T; rope and flag = largest position error of any "
         "particle at T, m. Wall time per simulated second on "
-     << maxThreads << " thread(s), median of " << repetitions
-     << ".\n";
+     << maxThreads << " thread(s), median of " << repetitions << ".\n";
   std::vector<std::string> hosts;
   for (const Row& r : rows)
     if (std::find(hosts.begin(), hosts.end(), r.host) == hosts.end()) hosts.push_back(r.host);
@@ -706,8 +749,8 @@ int plotStudy(const StudyOptions& o) {
     std::cerr << "weft study: plot skipped (" << script << " or /usr/bin/python3 missing)\n";
     return 0;
   }
-  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + csvPath.string() + "' '" +
-                          prefix.string() + "' --threads " + std::to_string(maxThreads);
+  const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + csvPath.string() + "' '" + prefix.string() +
+                          "' --threads " + std::to_string(maxThreads);
   std::cout.flush();
   if (std::system(cmd.c_str()) != 0) {
     std::cerr << "weft study: plotting failed (is python3-matplotlib installed? bash tools/setup.sh)\n";

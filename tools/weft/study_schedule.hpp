@@ -21,8 +21,8 @@
 namespace weftcli {
 
 struct StudyTask {
-  std::string name;   // "limit rope rk4 double", ...: for the schedule file and messages
-  double cost = 0;    // estimated cost, any unit common to the phase (work ~ spring force evaluations)
+  std::string name;  // "limit rope rk4 double", ...: for the schedule file and messages
+  double cost = 0;   // estimated cost, any unit common to the phase (work ~ spring force evaluations)
 };
 
 /// Who ran a task and how long it took.
