@@ -5,6 +5,7 @@
 #ifdef WEFT_HAVE_VIEW
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
+#include <dlfcn.h>
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -399,6 +400,22 @@ void onScroll(GLFWwindow* window, double, double y) {
   v.view.camera.distance *= std::pow(0.9f, static_cast<float>(y));
 }
 
+/// Keeps the libraries the window loaded at run time (GLFW opens libGL and X11 extension
+/// libraries, libglvnd the Mesa vendor library, Mesa its driver) in the process until it
+/// ends: glfwTerminate would unload them, and unloading Mesa's LLVM-backed driver is not
+/// safe. It also keeps their names in a leak report (LeakSanitizer can only name a module
+/// still loaded at exit: tests/lsan.supp names them).
+void keepGlLibrariesLoaded() {
+  for (const char* name : {"libGL.so.1", "libGLX.so.0", "libGLdispatch.so.0", "libGLX_mesa.so.0", "libglapi.so.0",
+                           "swrast_dri.so", "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so", "libLLVM-15.so.1",
+                           "libX11-xcb.so.1", "libXcursor.so.1", "libXrandr.so.2", "libXinerama.so.1", "libXi.so.6",
+                           "libXxf86vm.so.1"}) {
+    // RTLD_NOLOAD: only those already loaded; RTLD_NODELETE: never unloaded. The handle's
+    // reference is kept on purpose (no dlclose).
+    dlopen(name, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+  }
+}
+
 std::string glfwMessage() {
   const char* description = nullptr;
   glfwGetError(&description);
@@ -476,6 +493,7 @@ int viewScene(const ViewOptions& o) {
     return 2;
   }
   glfwMakeContextCurrent(window);
+  keepGlLibrariesLoaded();
   glfwSwapInterval(o.frames ? 0 : 1);
   const weftrender::GlApi gl =
       weftrender::loadGl([](const char* name) { return reinterpret_cast<void*>(glfwGetProcAddress(name)); });
