@@ -47,6 +47,8 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -62,7 +64,8 @@ namespace {
 /// One factorisation of the global matrix for one h, with the factor in the layout the
 /// interleaved solves read.
 struct GlobalFactor {
-  double h = 0;
+  double h = 0;  // 0: empty slot
+  std::uint64_t lastUse = 0;
   Eigen::SparseMatrix<double> lower;  // strictly lower triangle of L (unit diagonal), columns
   Eigen::VectorXd inverseD;           // 1 / D
 };
@@ -91,7 +94,6 @@ class Projective final : public Integrator<S> {
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
     ordering(pattern.selfadjointView<Eigen::Lower>(), inverse);  // AMD returns P^-1
     permutation_ = inverse.inverse();
-    cache_.reserve(kCachedFactors);
     position_.resize(static_cast<size_t>(n_));
     for (Index i = 0; i < n_; ++i) position_[static_cast<size_t>(i)] = permutation_.indices()[i];
   }
@@ -287,16 +289,21 @@ class Projective final : public Integrator<S> {
     return A;
   }
 
-  /// The factor for step h, from the cache or computed now (allocates).
+  /// The factor for step h, from the cache or computed now (allocates). The cache's slots
+  /// never move (an Eigen matrix moved by std::swap may be copied): the least recently
+  /// used slot is refilled.
   const GlobalFactor& factorFor(double h, const ForceField<S>& forces, StepWork& work) {
     const double drag = forces.effects().drag;
-    for (auto it = cache_.begin(); it != cache_.end(); ++it)
-      if (it->h == h && drag == cachedDrag_) {
-        std::rotate(it, it + 1, cache_.end());  // the most recently used last (no allocation)
-        return cache_.back();
-      }
-    if (drag != cachedDrag_) cache_.clear();
+    if (drag != cachedDrag_)
+      for (GlobalFactor& f : cache_) f.h = 0;  // another drag: every factor is stale
     cachedDrag_ = drag;
+    ++useClock_;
+    for (GlobalFactor& f : cache_)
+      if (f.h == h) {
+        f.lastUse = useClock_;
+        return f;
+      }
+    GlobalFactor& f = cache_[0].lastUse <= cache_[1].lastUse ? cache_[0] : cache_[1];
     // Factorise P A P^T with the ordering found at construction (NaturalOrdering: the
     // permutation is applied here, so the factor's columns are in the solve's order).
     const Eigen::SparseMatrix<double> A = assemble(h, drag);
@@ -306,15 +313,13 @@ class Projective final : public Integrator<S> {
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
       throw std::runtime_error("projective dynamics: the global matrix is not positive definite (a particle of zero "
                                "mass that is not pinned?)");
-    GlobalFactor f;
     f.h = h;
+    f.lastUse = useClock_;
     f.lower = ldlt.matrixL().nestedExpression();
     f.lower.makeCompressed();
     f.inverseD = ldlt.vectorD().cwiseInverse();
-    if (cache_.size() == kCachedFactors) cache_.erase(cache_.begin());
-    cache_.push_back(std::move(f));
     ++work.factorizations;
-    return cache_.back();
+    return f;
   }
 
   /// permuted_ = (L D L^T)^-1 permuted_, three interleaved right-hand sides.
@@ -370,7 +375,6 @@ class Projective final : public Integrator<S> {
     }
   }
 
-  static constexpr size_t kCachedFactors = 2;
 
   const Model<S>* model_;
   int iterations_;
@@ -386,7 +390,8 @@ class Projective final : public Integrator<S> {
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation_;  // particle -> factor order
   std::vector<Index> position_;  // permutation_ as a plain list
   std::vector<double> blockMax_, blockMove_;
-  std::vector<GlobalFactor> cache_;  // at most kCachedFactors, least recently used first
+  std::array<GlobalFactor, 2> cache_;  // h = 0: empty
+  std::uint64_t useClock_ = 0;
   double cachedDrag_ = -1;
 };
 
