@@ -301,6 +301,19 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
       work.count = kept;
     }
   });
+  // Which slot ran which task depends on the scheduler: every slot is grown to the largest
+  // any needed, so that once a query has been warmed up no slot meets a task too large for
+  // it (the query then allocates nothing, whatever the scheduling).
+  size_t leavesSize = 0, levelSize = 0;
+  for (const BvhPairScratch::ThreadLevels& t : scratch.threadLevels_) {
+    leavesSize = std::max(leavesSize, t.leaves.size());
+    levelSize = std::max({levelSize, t.level[0].size(), t.level[1].size()});
+  }
+  for (BvhPairScratch::ThreadLevels& t : scratch.threadLevels_) {
+    if (t.leaves.size() < leavesSize) t.leaves.resize(leavesSize);
+    for (auto& level : t.level)
+      if (level.size() < levelSize) level.resize(levelSize);
+  }
   size_t total = 0;
   for (Index k = 0; k < tasks; ++k) total += static_cast<size_t>(scratch.taskPairs_[static_cast<size_t>(k)].count);
   out.reserve(total);
