@@ -78,7 +78,8 @@ WEFT_INTEGRATOR(BM_Integrator_Projective_double, double, IntegratorKind::Project
 // not stop) and cached; the counter wall_s_per_sim_s = wall time / (steps x dt).
 // Adaptive rk45 runs frames of 1/60 s at its default tolerances (its substeps are its
 // own choice); implicit Euler and projective dynamics (10 iterations) run 1/60 s steps
-// (a real-time frame; they are stable far beyond). Explicit Euler is left out: its stable step on this cloth is ~1e-6 s.
+// (a real-time frame; they are stable far beyond). Explicit Euler is left out: its stable step on this cloth is ~1e-6
+// s.
 // ---------------------------------------------------------------------------------------
 
 template <class S>

@@ -39,7 +39,7 @@ bool warm(const std::uint8_t* p) { return p[0] > p[2] + 25 && p[0] >= p[1]; }
 bool steel(const std::uint8_t* p) { return p[2] > p[0] + 12 && p[1] < 175 && p[0] < 160; }
 
 struct Coverage {
-  double share = 0;           // of the picture's pixels
+  double share = 0;            // of the picture's pixels
   bool touchesBorder = false;  // a pixel in the outermost row or column
 };
 

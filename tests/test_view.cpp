@@ -29,22 +29,23 @@ double warmShare(const weftrender::Image& image, int x0, int x1) {
 }
 
 TEST(View, WithoutADisplayItSaysSoAndFails) {
-  const CliRun run = runProgram("env", std::string("-u DISPLAY -u WAYLAND_DISPLAY '") + WEFT_CLI_PATH +
-                                           "' view flag --scene-size 8 --frames 5",
-                                Stderr::Capture);
+  const CliRun run = runProgram(
+      "env", std::string("-u DISPLAY -u WAYLAND_DISPLAY '") + WEFT_CLI_PATH + "' view flag --scene-size 8 --frames 5",
+      Stderr::Capture);
   EXPECT_EQ(run.exitCode, 2) << run.out << run.err;
   EXPECT_NE(run.err.find("no display"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("weft render"), std::string::npos) << run.err;  // what to use instead
 }
 
 TEST(View, SplitScreenUnderAVirtualDisplay) {
-  const std::string shot =
-      ::testing::TempDir() + "weft_view_screenshot_" + std::to_string(getpid()) + ".png";
+  const std::string shot = ::testing::TempDir() + "weft_view_screenshot_" + std::to_string(getpid()) + ".png";
   std::filesystem::remove(shot);
   // 300 frames of the 16 x 16 flag, RK4 on the left and symplectic Euler on the right.
-  const CliRun run = runProgram("xvfb-run", std::string("-a -s '-screen 0 640x480x24' '") + WEFT_CLI_PATH +
-                                                "' view flag --scene-size 16 --compare symplectic --frames 300 "
-                                                "--size 320x240 --screenshot '" + shot + "'",
+  const CliRun run = runProgram("xvfb-run",
+                                std::string("-a -s '-screen 0 640x480x24' '") + WEFT_CLI_PATH +
+                                    "' view flag --scene-size 16 --compare symplectic --frames 300 "
+                                    "--size 320x240 --screenshot '" +
+                                    shot + "'",
                                 Stderr::Capture);
   ASSERT_EQ(run.exitCode, 0) << run.out << run.err;
   EXPECT_NE(run.out.find("300 frames"), std::string::npos) << run.out;

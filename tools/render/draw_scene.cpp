@@ -30,7 +30,9 @@ const Vec3f kKinematicBody{0.10f, 0.45f, 0.45f};
 const Vec3f kRope{0.22f, 0.12f, 0.05f};
 
 Vec3f toF(const Eigen::Vector3d& v) { return v.cast<float>(); }
-Vec3f toF(const weft::Vec3d& v) { return Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)); }
+Vec3f toF(const weft::Vec3d& v) {
+  return Vec3f(static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z));
+}
 weft::Vec3d toD(const Vec3f& v) { return {v.x(), v.y(), v.z()}; }
 
 /// Two unit vectors perpendicular to the unit `axis` and to each other.
@@ -178,8 +180,8 @@ SceneDrawer::SceneDrawer(const weft::Model<S>& model, const std::vector<weft::In
       case weft::ObstacleKind::Plane: {
         const Vec3f n = toF(o.normal).normalized();
         if (n.y() > 0.999f) {
-          groundPlane_ = std::max(groundPlane_.value_or(-std::numeric_limits<float>::infinity()),
-                                  static_cast<float>(o.point.y));
+          groundPlane_ =
+              std::max(groundPlane_.value_or(-std::numeric_limits<float>::infinity()), static_cast<float>(o.point.y));
         } else {
           planes_.push_back(o);
         }
@@ -190,8 +192,7 @@ SceneDrawer::SceneDrawer(const weft::Model<S>& model, const std::vector<weft::In
                       s.indices);
         break;
       case weft::ObstacleKind::Capsule:
-        appendCapsule(toF(o.point), toF(o.end), static_cast<float>(o.radius), 32, 8, s.vertices, s.normals,
-                      s.indices);
+        appendCapsule(toF(o.point), toF(o.end), static_cast<float>(o.radius), 32, 8, s.vertices, s.normals, s.indices);
         break;
       case weft::ObstacleKind::Box:
         appendBox(toF(o.point), toF(o.halfExtents) + Vec3f::Constant(static_cast<float>(o.radius)), s.vertices,
@@ -224,7 +225,8 @@ SceneDrawer::SceneDrawer(const weft::Model<S>& model, const std::vector<weft::In
                       : motion == weft::BodyMotion::Kinematic ? kKinematicBody
                                                               : kDynamicBody;
       // Neighbouring bodies in shades of their colour, so a stack shows its boxes.
-      if (motion == weft::BodyMotion::Dynamic) placed.colour *= 0.72f + 0.28f * static_cast<float>(piece.body % 3) / 2.f;
+      if (motion == weft::BodyMotion::Dynamic)
+        placed.colour *= 0.72f + 0.28f * static_cast<float>(piece.body % 3) / 2.f;
       placed.staticBody = motion == weft::BodyMotion::Static;
       placed.piece = static_cast<int>(p);
       Shape& s = placed.shape;
@@ -248,7 +250,8 @@ SceneSnapshot SceneDrawer::snapshot(const weft::Simulation<S>& sim) const {
     for (int k = 0; k < 3; ++k) snap.x[static_cast<std::size_t>(3 * i + k)] = static_cast<float>(state.x(i, k));
   if (const weft::RigidWorld* world = sim.rigidWorld()) {
     snap.pieces.reserve(static_cast<std::size_t>(world->model().pieceCount()));
-    for (weft::Index p = 0; p < world->model().pieceCount(); ++p) snap.pieces.push_back(world->piecePose(p, world->state()));
+    for (weft::Index p = 0; p < world->model().pieceCount(); ++p)
+      snap.pieces.push_back(world->piecePose(p, world->state()));
   }
   return snap;
 }
@@ -259,7 +262,8 @@ void SceneDrawer::findFloors(const SceneSnapshot& initial) {
     if (!placed.staticBody || placed.piece < 0 || static_cast<std::size_t>(placed.piece) >= initial.pieces.size())
       continue;
     Bounds box;
-    for (const Vec3f& v : placed.shape.vertices) box.add(transform(initial.pieces[static_cast<std::size_t>(placed.piece)], v));
+    for (const Vec3f& v : placed.shape.vertices)
+      box.add(transform(initial.pieces[static_cast<std::size_t>(placed.piece)], v));
     const Vec3f size = box.hi - box.lo;
     const bool flat = size.y() <= 0.2f * std::max(size.x(), size.z());
     const bool large = framed.empty() || box.radius() > 2.f * framed.radius();

@@ -39,9 +39,9 @@ namespace weftrender {
 
 /// One mesh to draw.
 struct DrawMesh {
-  std::vector<float> positions;        // (n x 3) vertex positions, world, m
-  std::vector<float> normals;          // (n x 3) unit normals of the front side
-  std::vector<std::uint32_t> indices;  // triangles, counter-clockwise seen from the front
+  std::vector<float> positions;                                     // (n x 3) vertex positions, world, m
+  std::vector<float> normals;                                       // (n x 3) unit normals of the front side
+  std::vector<std::uint32_t> indices;                               // triangles, counter-clockwise seen from the front
   Eigen::Vector3f front{0.6f, 0.6f, 0.6f}, back{0.6f, 0.6f, 0.6f};  // linear RGB of each side
   bool castsShadow = true;
 };
@@ -54,8 +54,8 @@ struct DrawFrame {
 
 /// The moving part of a scene at one time.
 struct SceneSnapshot {
-  double time = 0;                // s
-  std::vector<float> x;           // (n x 3) particle positions, row by row, m
+  double time = 0;                 // s
+  std::vector<float> x;            // (n x 3) particle positions, row by row, m
   std::vector<weft::Pose> pieces;  // world pose of every rigid piece
 };
 
@@ -92,8 +92,8 @@ class SceneDrawer {
     std::vector<std::uint32_t> indices;
   };
   struct Cloth {
-    weft::Index first = 0, count = 0;                 // particles [first, first + count)
-    std::vector<std::uint32_t> indices;              // triangles, local to `first`
+    weft::Index first = 0, count = 0;    // particles [first, first + count)
+    std::vector<std::uint32_t> indices;  // triangles, local to `first`
     Eigen::Vector3f front, back;
   };
   struct Rope {
@@ -102,8 +102,8 @@ class SceneDrawer {
   struct PlacedShape {
     Shape shape;
     Eigen::Vector3f colour;
-    int piece = -1;                                  // >= 0: a rigid piece's pose moves it
-    int path = -1;                                   // >= 0: a moving mesh obstacle's path (paths_)
+    int piece = -1;  // >= 0: a rigid piece's pose moves it
+    int path = -1;   // >= 0: a moving mesh obstacle's path (paths_)
     bool staticBody = false;
     bool floor = false;  // findFloors: drawn as the ground grid
   };

@@ -63,8 +63,8 @@ OffscreenContext::OffscreenContext(int width, int height)
   context_ = context;
   if (!api.makeCurrent(context, pixels_.data(), GL_UNSIGNED_BYTE, width, height)) {
     api.destroyContext(context);
-    throw std::runtime_error("OSMesa cannot render into a " + std::to_string(width) + " x " +
-                             std::to_string(height) + " buffer");
+    throw std::runtime_error("OSMesa cannot render into a " + std::to_string(width) + " x " + std::to_string(height) +
+                             " buffer");
   }
   gApi = &api;
   try {
@@ -82,8 +82,6 @@ const std::uint8_t* OffscreenContext::finish() {
   return pixels_.data();
 }
 
-const char* OffscreenContext::renderer() const {
-  return reinterpret_cast<const char*>(gl_.GetString(GL_RENDERER));
-}
+const char* OffscreenContext::renderer() const { return reinterpret_cast<const char*>(gl_.GetString(GL_RENDERER)); }
 
 }  // namespace weftrender

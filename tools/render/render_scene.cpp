@@ -24,9 +24,7 @@ void prepareOutputDirectory(const std::string& directory, const std::string& opt
   std::remove(probe.c_str());
 }
 
-std::int64_t defaultEvery(double dt) {
-  return std::max<std::int64_t>(1, std::llround(1.0 / (30.0 * dt)));
-}
+std::int64_t defaultEvery(double dt) { return std::max<std::int64_t>(1, std::llround(1.0 / (30.0 * dt))); }
 
 void checkSnapshotMemory(const SceneDrawer& drawer, weft::Index pieceCount, std::int64_t steps, std::int64_t every) {
   const double frames = static_cast<double>(steps / every + 1);
@@ -72,8 +70,8 @@ FramedView frameBox(const SceneDrawer& drawer, const Bounds& box, int width, int
   return view;
 }
 
-Image drawSnapshot(const SceneDrawer& drawer, const SceneSnapshot& snapshot, const FramedView& view,
-                   Renderer& renderer, OffscreenContext& context, DrawFrame& frame) {
+Image drawSnapshot(const SceneDrawer& drawer, const SceneSnapshot& snapshot, const FramedView& view, Renderer& renderer,
+                   OffscreenContext& context, DrawFrame& frame) {
   drawer.build(snapshot, view.tubeRadius, frame);
   frame.groundHeight = view.groundHeight;
   renderer.draw(frame, view.camera, Viewport{0, 0, context.width(), context.height()}, view.radius,

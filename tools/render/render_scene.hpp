@@ -44,10 +44,10 @@ void checkSnapshotMemory(const SceneDrawer& drawer, weft::Index pieceCount, std:
 /// A fixed camera for a whole run and what goes with it.
 struct FramedView {
   OrbitCamera camera;
-  float radius = 1;                  // of the framed box, m
+  float radius = 1;                   // of the framed box, m
   std::optional<float> groundHeight;  // the ground grid's y, m
-  float tubeRadius = 0.004f;         // ropes, m
-  int width = 640, height = 480;     // pixels of the pictures
+  float tubeRadius = 0.004f;          // ropes, m
+  int width = 640, height = 480;      // pixels of the pictures
 };
 
 /// The camera that frames every snapshot (angles in radians, distance in m; unset: the
@@ -64,7 +64,7 @@ FramedView frameBox(const SceneDrawer& drawer, const Bounds& box, int width, int
 
 /// Draws one snapshot into the context (sized view.width x view.height times an integer
 /// supersampling factor) and returns the averaged-down picture. `frame` is scratch.
-Image drawSnapshot(const SceneDrawer& drawer, const SceneSnapshot& snapshot, const FramedView& view,
-                   Renderer& renderer, OffscreenContext& context, DrawFrame& frame);
+Image drawSnapshot(const SceneDrawer& drawer, const SceneSnapshot& snapshot, const FramedView& view, Renderer& renderer,
+                   OffscreenContext& context, DrawFrame& frame);
 
 }  // namespace weftrender

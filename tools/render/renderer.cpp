@@ -186,8 +186,8 @@ Renderer::Slot& Renderer::slot(std::size_t i) {
 void Renderer::upload(const DrawMesh& mesh, Slot& s) {
   gl_.BindVertexArray(s.vertexArray);
   gl_.BindBuffer(GL_ARRAY_BUFFER, s.positions);
-  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh.positions.size() * sizeof(float)),
-                 mesh.positions.data(), GL_STREAM_DRAW);
+  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh.positions.size() * sizeof(float)), mesh.positions.data(),
+                 GL_STREAM_DRAW);
   gl_.BindBuffer(GL_ARRAY_BUFFER, s.normals);
   gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh.normals.size() * sizeof(float)), mesh.normals.data(),
                  GL_STREAM_DRAW);
@@ -235,8 +235,7 @@ void Renderer::draw(const DrawFrame& frame, const OrbitCamera& camera, const Vie
     quad.indices = {0, 2, 1, 0, 3, 2};
     upload(quad, ground_);
     gl_.UseProgram(groundProgram_);
-    gl_.UniformMatrix4fv(gl_.GetUniformLocation(groundProgram_, "viewProjection"), 1, GL_FALSE,
-                         viewProjection.data());
+    gl_.UniformMatrix4fv(gl_.GetUniformLocation(groundProgram_, "viewProjection"), 1, GL_FALSE, viewProjection.data());
     gl_.UniformMatrix4fv(gl_.GetUniformLocation(groundProgram_, "model"), 1, GL_FALSE, identity.data());
     gl_.Uniform3fv(gl_.GetUniformLocation(groundProgram_, "centre"), 1, camera.target.data());
     gl_.Uniform1f(gl_.GetUniformLocation(groundProgram_, "spacing"), niceStep(0.25f * radius));
@@ -304,8 +303,7 @@ void Renderer::draw(const DrawFrame& frame, const OrbitCamera& camera, const Vie
 
 namespace weftrender {
 
-void Renderer::drawOverlay(const std::vector<float>& triangles, const Eigen::Vector4f& colour,
-                           const Viewport& vp) {
+void Renderer::drawOverlay(const std::vector<float>& triangles, const Eigen::Vector4f& colour, const Viewport& vp) {
   if (triangles.empty()) return;
   if (overlay_.vertexArray == 0) overlay_ = makeSlot();
   // The 2D points as 3D positions at z = 0 (normals unused by the flat colour).

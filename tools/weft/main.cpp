@@ -329,27 +329,30 @@ int main(int argc, char** argv) {
   for (const std::string& name : integrators) integratorList += (integratorList.empty() ? "" : " | ") + name;
   weftcli::ViewOptions view;
   CLI::App* viewCmd = app.add_subcommand(
-      "view", "Open a window on a scene, live: orbit, pause, step, change integrator, dt, precision and threads, "
-              "compare two integrators side by side, pull the cloth with the mouse");
+      "view",
+      "Open a window on a scene, live: orbit, pause, step, change integrator, dt, precision and threads, "
+      "compare two integrators side by side, pull the cloth with the mouse");
   viewCmd->allow_extras();
   viewCmd->add_option("scene", view.run.scene, "A built-in scene (" + names + ") or a JSON scene file");
   viewCmd->add_option("--scene-size", view.run.size, "Built-in scenes: grid side (cloth) or particle count (rope)")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   viewCmd->add_option("--dt", view.run.dt, "Time step in seconds (> 0)")->check(finitePositive);
   viewCmd->add_option("--integrator", view.run.integrator, integratorList)->check(CLI::IsMember(integrators));
-  viewCmd->add_option("--compare", view.compare,
-                      "Split screen from the start: the right pane runs the same scene under this integrator")
+  viewCmd
+      ->add_option("--compare", view.compare,
+                   "Split screen from the start: the right pane runs the same scene under this integrator")
       ->check(CLI::IsMember(integrators));
   viewCmd->add_option("--precision", view.run.precision, "float | double")->check(CLI::IsMember({"float", "double"}));
   viewCmd->add_option("--threads", view.run.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
-  viewCmd->add_option_function<std::string>(
-             "--size",
-             [&view](const std::string& text) {
-               const std::size_t x = text.find('x');
-               view.width = std::stoi(text.substr(0, x));
-               view.height = std::stoi(text.substr(x + 1));
-             },
-             "Window size in pixels, WIDTHxHEIGHT (default 1280x720)")
+  viewCmd
+      ->add_option_function<std::string>(
+          "--size",
+          [&view](const std::string& text) {
+            const std::size_t x = text.find('x');
+            view.width = std::stoi(text.substr(0, x));
+            view.height = std::stoi(text.substr(x + 1));
+          },
+          "Window size in pixels, WIDTHxHEIGHT (default 1280x720)")
       ->check(imageSize);
   CLI::Option* frames = viewCmd->add_option("--frames", view.frames, "Close after N frames (N >= 1)")
                             ->check(CLI::Range(std::int64_t(1), std::int64_t(1) << 40));
@@ -378,8 +381,7 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   if (cmd->parsed() && !cmd->remaining().empty()) return reportExtras(*cmd, cmd->remaining());
-  if (renderCmd->parsed() && !renderCmd->remaining().empty())
-    return reportExtras(*renderCmd, renderCmd->remaining());
+  if (renderCmd->parsed() && !renderCmd->remaining().empty()) return reportExtras(*renderCmd, renderCmd->remaining());
   if (viewCmd->parsed() && !viewCmd->remaining().empty()) return reportExtras(*viewCmd, viewCmd->remaining());
   try {
     if (studyCmd->parsed()) {

@@ -98,7 +98,8 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
       << " in " << o.out << " (frame_000000.png ...), every " << every << " steps of "
       << weft::integratorName(sim.integrator()) << " at dt " << sim.timeStep() << " s, " << sim.state().time
       << " s simulated\n"
-      << "  camera       " << (o.framingEach ? "(the last picture's) " : "") << "azimuth " << view.camera.azimuth * 180 / std::numbers::pi << " deg, elevation "
+      << "  camera       " << (o.framingEach ? "(the last picture's) " : "") << "azimuth "
+      << view.camera.azimuth * 180 / std::numbers::pi << " deg, elevation "
       << view.camera.elevation * 180 / std::numbers::pi << " deg, distance " << view.camera.distance
       << " m, looking at (" << view.camera.target.x() << ", " << view.camera.target.y() << ", "
       << view.camera.target.z() << ")\n"

@@ -10,13 +10,13 @@
 namespace weftcli {
 
 struct RenderOptions {
-  RunOptions run;  // the scene and what overrides its values (scene, size, steps, dt, integrator, precision, threads)
-  std::string out;                    // directory of the pictures (created)
-  std::optional<std::int64_t> every;  // a picture every K steps (default: 30 per simulated second)
-  int width = 640, height = 480;      // pixels
+  RunOptions run;   // the scene and what overrides its values (scene, size, steps, dt, integrator, precision, threads)
+  std::string out;  // directory of the pictures (created)
+  std::optional<std::int64_t> every;                   // a picture every K steps (default: 30 per simulated second)
+  int width = 640, height = 480;                       // pixels
   std::optional<double> azimuth, elevation, distance;  // --camera AZ,EL[,DIST]: degrees, degrees, m
-  int supersample = 2;                // rendered at this multiple of the size, then averaged down
-  bool framingEach = false;           // --framing each: a camera per picture (default: one for the run)
+  int supersample = 2;                                 // rendered at this multiple of the size, then averaged down
+  bool framingEach = false;  // --framing each: a camera per picture (default: one for the run)
 };
 
 /// Runs the scene, keeping a snapshot every `every` steps, frames the camera on everything

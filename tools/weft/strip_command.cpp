@@ -4,10 +4,10 @@
 
 #ifdef WEFT_HAVE_RENDER
 #include <chrono>
-#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -105,8 +105,8 @@ int writeIntegratorStrip(const std::string& directory, bool quick) {
   std::ostringstream md;
   md.precision(4);
   md << "# The flag under each integrator at the same time\n\n"
-     << "`strip.png`, left to right: the " << (quick ? 24 : 32) << " x " << (quick ? 24 : 32)
-     << " flag after " << kDuration << " s at dt " << spec.simulation.dt
+     << "`strip.png`, left to right: the " << (quick ? 24 : 32) << " x " << (quick ? 24 : 32) << " flag after "
+     << kDuration << " s at dt " << spec.simulation.dt
      << " s (the flag's default), one thread, double. A red frame: the stability check stopped the run; the "
         "picture is its last good state.\n\n"
      << "| integrator | status | simulated, s | wall, s | energy, J |\n|---|---|---|---|---|\n";
@@ -114,8 +114,7 @@ int writeIntegratorStrip(const std::string& directory, bool quick) {
     md << "| " << weft::integratorName(t.kind) << " | " << (t.ok ? "ok" : "stopped: " + t.status) << " | " << t.time
        << " | " << t.wallSeconds << " | " << t.energy << " |\n";
   std::ofstream((std::filesystem::path(directory) / "strip.md").string()) << md.str();
-  std::cout << "weft study --strip: " << directory << "/strip.png and strip.md (" << tiles.size()
-            << " integrators)\n";
+  std::cout << "weft study --strip: " << directory << "/strip.png and strip.md (" << tiles.size() << " integrators)\n";
   return 0;
 }
 

@@ -14,8 +14,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
-#include <optional>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -81,7 +81,7 @@ class PaneOf final : public Pane {
   PaneOf(const weft::SceneSpec& spec, const Carry* carry) {
     weft::AssembledScene<S> a = weft::assembleScene<S>(spec);
     first_ = a.firstParticle;
-    sim_ = std::make_unique<weft::Simulation<S>>(std::move(a.built), a.options);
+    sim_ = std::make_unique<weft::Simulation<S> >(std::move(a.built), a.options);
     // The particles carry over (rigid bodies would not: such a scene starts over).
     if (carry && !sim_->rigidWorld() && carry->x.rows() == sim_->model().particleCount()) {
       weft::State<S> s = sim_->state();
@@ -143,15 +143,15 @@ class PaneOf final : public Pane {
 
  private:
   std::vector<weft::Index> first_;
-  std::unique_ptr<weft::Simulation<S>> sim_;
+  std::unique_ptr<weft::Simulation<S> > sim_;
   weft::StepStatus status_;
   double msPerStep_ = 0;
   std::int64_t steps_ = 0;
 };
 
 std::unique_ptr<Pane> makePane(const weft::SceneSpec& spec, const Carry* carry) {
-  if (spec.precision == weft::Precision::Float) return std::make_unique<PaneOf<float>>(spec, carry);
-  return std::make_unique<PaneOf<double>>(spec, carry);
+  if (spec.precision == weft::Precision::Float) return std::make_unique<PaneOf<float> >(spec, carry);
+  return std::make_unique<PaneOf<double> >(spec, carry);
 }
 
 weft::IntegratorKind nextIntegrator(weft::IntegratorKind kind) {
@@ -175,7 +175,7 @@ struct Viewer {
   weft::Index particle = -1;
   float particleDepth = 0;  // its normalised device depth when picked
   bool particleRight = false;
-  std::string message;      // last change, shown for a while
+  std::string message;  // last change, shown for a while
   Clock::time_point messageTime;
   GLFWwindow* window = nullptr;
 
@@ -270,8 +270,8 @@ struct Viewer {
     const Eigen::Vector2f p = pixel(x, y);
     const weftrender::Viewport vp = paneViewport(particleRight);
     const Eigen::Vector4f ndc(2 * (p.x() - static_cast<float>(vp.x)) / static_cast<float>(vp.width) - 1,
-                              2 * (p.y() - static_cast<float>(vp.y)) / static_cast<float>(vp.height) - 1,
-                              particleDepth, 1.f);
+                              2 * (p.y() - static_cast<float>(vp.y)) / static_cast<float>(vp.height) - 1, particleDepth,
+                              1.f);
     const Eigen::Vector4f world = viewProjection(vp).inverse() * ndc;
     const Eigen::Vector3f target = world.head<3>() / world.w();
     left->drag(particle, target);
@@ -345,7 +345,8 @@ void handleKey(GLFWwindow* window, int key) {
       const int t = v.spec.simulation.threads;
       v.spec.simulation.threads = t == 1 ? 2 : t == 2 ? 0 : 1;
       v.rebuild(true);
-      text << "threads " << (v.spec.simulation.threads == 0 ? std::string("all") : std::to_string(v.spec.simulation.threads));
+      text << "threads "
+           << (v.spec.simulation.threads == 0 ? std::string("all") : std::to_string(v.spec.simulation.threads));
       v.say(text.str());
       break;
     }
@@ -406,10 +407,10 @@ void onScroll(GLFWwindow* window, double, double y) {
 /// safe. It also keeps their names in a leak report (LeakSanitizer can only name a module
 /// still loaded at exit: tests/lsan.supp names them).
 void keepGlLibrariesLoaded() {
-  for (const char* name : {"libGL.so.1", "libGLX.so.0", "libGLdispatch.so.0", "libGLX_mesa.so.0", "libglapi.so.0",
-                           "swrast_dri.so", "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so", "libLLVM-15.so.1",
-                           "libX11-xcb.so.1", "libXcursor.so.1", "libXrandr.so.2", "libXinerama.so.1", "libXi.so.6",
-                           "libXxf86vm.so.1"}) {
+  for (const char* name :
+       {"libGL.so.1", "libGLX.so.0", "libGLdispatch.so.0", "libGLX_mesa.so.0", "libglapi.so.0", "swrast_dri.so",
+        "/usr/lib/x86_64-linux-gnu/dri/swrast_dri.so", "libLLVM-15.so.1", "libX11-xcb.so.1", "libXcursor.so.1",
+        "libXrandr.so.2", "libXinerama.so.1", "libXi.so.6", "libXxf86vm.so.1"}) {
     // RTLD_NOLOAD: only those already loaded; RTLD_NODELETE: never unloaded. The handle's
     // reference is kept on purpose (no dlclose).
     dlopen(name, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
@@ -453,8 +454,8 @@ void drawReadout(weftrender::Renderer& renderer, const weftrender::Viewport& vp,
   weftrender::appendText(status, 4 * scale, top - 3 * lineHeight, scale, statusText);
   renderer.drawOverlay(panel, {0.f, 0.f, 0.f, 0.55f}, vp);
   renderer.drawOverlay(text, {1.f, 1.f, 1.f, 1.f}, vp);
-  renderer.drawOverlay(statusText, r.ok ? Eigen::Vector4f(0.5f, 1.f, 0.5f, 1.f) : Eigen::Vector4f(1.f, 0.4f, 0.35f, 1.f),
-                       vp);
+  renderer.drawOverlay(statusText,
+                       r.ok ? Eigen::Vector4f(0.5f, 1.f, 0.5f, 1.f) : Eigen::Vector4f(1.f, 0.4f, 0.35f, 1.f), vp);
 }
 
 }  // namespace
@@ -569,8 +570,8 @@ int viewScene(const ViewOptions& o) {
         weftrender::writePng(*o.screenshot, weftrender::downsample(pixels.data(), fw, fh, 1));
       }
       const Readout r = v.left->readout();
-      std::cout << "weft view: " << drawn << " frames, " << r.integrator << " at t " << r.time << " s, "
-                << r.status << (o.screenshot ? ", screenshot " + *o.screenshot : std::string()) << "\n";
+      std::cout << "weft view: " << drawn << " frames, " << r.integrator << " at t " << r.time << " s, " << r.status
+                << (o.screenshot ? ", screenshot " + *o.screenshot : std::string()) << "\n";
       break;
     }
     glfwSwapBuffers(window);

@@ -11,10 +11,10 @@
 namespace weftcli {
 
 struct ViewOptions {
-  RunOptions run;                      // the scene and what overrides its values
-  std::optional<std::string> compare;  // split screen from the start: the right pane's integrator
-  int width = 1280, height = 720;      // window size, pixels
-  std::optional<std::int64_t> frames;  // close after this many frames (tests, recordings)
+  RunOptions run;                         // the scene and what overrides its values
+  std::optional<std::string> compare;     // split screen from the start: the right pane's integrator
+  int width = 1280, height = 720;         // window size, pixels
+  std::optional<std::int64_t> frames;     // close after this many frames (tests, recordings)
   std::optional<std::string> screenshot;  // with frames: the last frame as a PNG file
 };
 

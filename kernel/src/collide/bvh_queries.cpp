@@ -1,6 +1,8 @@
 // TriangleBvh's queries: the closest triangle to a point within a radius, and the
 // overlapping (or exactly intersecting) triangle pairs between two BVHs or within one
 // (see weft/collide/bvh.hpp); build and refit are in bvh.cpp.
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,8 +10,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <tbb/task_arena.h>
 
 #include "bvh_internal.hpp"
 #include "closest_point.hpp"

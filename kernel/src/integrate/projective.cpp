@@ -48,8 +48,8 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <array>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <stdexcept>
 #include <vector>
@@ -311,8 +311,9 @@ class Projective final : public Integrator<S> {
     permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation_);
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
-      throw std::runtime_error("projective dynamics: the global matrix is not positive definite (a particle of zero "
-                               "mass that is not pinned?)");
+      throw std::runtime_error(
+          "projective dynamics: the global matrix is not positive definite (a particle of zero "
+          "mass that is not pinned?)");
     f.h = h;
     f.lastUse = useClock_;
     f.lower = ldlt.matrixL().nestedExpression();
@@ -375,20 +376,19 @@ class Projective final : public Integrator<S> {
     }
   }
 
-
   const Model<S>* model_;
   int iterations_;
   Index n_;
   const Incidence* incidence_ = nullptr;
-  ScalarArray<S> free_;          // (n) 1 for free particles, 0 for pinned
-  Vec3Array<S> externalAccel_;   // (n x 3) every acceleration at the start of the step, m/s^2
-  Vec3Array<S> springForce_;     // (m x 3) spring forces at the start of the step, N
-  Vec3Array<S> springTerm_;      // (m x 3) the local step's per-spring right-hand side, kg m
-  Vec3Array<S> constant_;        // (n x 3) the right-hand side's constant part, kg m
-  Vec3Array<S> displacement_;    // (n x 3) the iterate: x1 - x0, m
+  ScalarArray<S> free_;           // (n) 1 for free particles, 0 for pinned
+  Vec3Array<S> externalAccel_;    // (n x 3) every acceleration at the start of the step, m/s^2
+  Vec3Array<S> springForce_;      // (m x 3) spring forces at the start of the step, N
+  Vec3Array<S> springTerm_;       // (m x 3) the local step's per-spring right-hand side, kg m
+  Vec3Array<S> constant_;         // (n x 3) the right-hand side's constant part, kg m
+  Vec3Array<S> displacement_;     // (n x 3) the iterate: x1 - x0, m
   std::vector<double> permuted_;  // (3 n) right-hand side / solution in the factor's order
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation_;  // particle -> factor order
-  std::vector<Index> position_;  // permutation_ as a plain list
+  std::vector<Index> position_;                                                // permutation_ as a plain list
   std::vector<double> blockMax_, blockMove_;
   std::array<GlobalFactor, 2> cache_;  // h = 0: empty
   std::uint64_t useClock_ = 0;

@@ -203,8 +203,9 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
   if (root.contains("integration")) {
     const Json& j = root["integration"];
     const std::string f = "integration";
-    r.object(j, f, {"adaptive", "rtol", "atol", "min_substep", "max_substeps", "cg_tolerance", "cg_max_iterations",
-                      "projective_iterations"});
+    r.object(j, f,
+             {"adaptive", "rtol", "atol", "min_substep", "max_substeps", "cg_tolerance", "cg_max_iterations",
+              "projective_iterations"});
     IntegratorOptions& io = o.integration;
     io.adaptive = r.boolean(j, f, "adaptive", io.adaptive);
     io.relativeTolerance = r.anyNumber(j, f, "rtol", io.relativeTolerance);
