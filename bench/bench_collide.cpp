@@ -41,7 +41,7 @@
 #endif
 
 #include "bench_common.hpp"
-#include "weft/collide/bvh.hpp"
+#include "collide/bvh.hpp"
 #include "weft/collide/shapes.hpp"
 #include "weft/weft.hpp"
 

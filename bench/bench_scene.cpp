@@ -21,6 +21,7 @@
 #include <map>
 #include <string>
 
+#include "collide/contact_solver.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 

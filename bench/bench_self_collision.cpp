@@ -31,6 +31,7 @@
 #ifdef WEFT_HAVE_EMBREE
 #include "bench_embree.hpp"
 #endif
+#include "collide/self_collider.hpp"
 #include "weft/weft.hpp"
 
 namespace {

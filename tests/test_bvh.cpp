@@ -21,10 +21,10 @@
 #include <string>
 #include <vector>
 
+#include "collide/bvh.hpp"
+#include "collide/geometry.hpp"
 #include "support/alloc_counter.hpp"
 #include "support/test_support.hpp"
-#include "weft/collide/bvh.hpp"
-#include "weft/collide/geometry.hpp"
 #include "weft/collide/shapes.hpp"
 
 namespace weft::test {

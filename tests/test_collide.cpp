@@ -9,6 +9,7 @@
 #include <cstring>
 #include <memory>
 
+#include "collide/contact_solver.hpp"
 #include "support/test_support.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/collide/shapes.hpp"

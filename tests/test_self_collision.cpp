@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "collide/self_collider.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 

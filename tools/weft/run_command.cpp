@@ -466,11 +466,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     // Cloth against cloth: pairs of triangles (sharing no particle) that intersect at the end
     // (the exact check, in every scene), and with self-collision what its pass did over the run.
     j["intersecting_pairs"] = sim.selfIntersections();
-    if (const weft::SelfCollider<S>* self = sim.selfCollider()) {
+    if (const weft::SelfCollisionOptions& self = sim.options().selfCollision; self.enabled) {
       const weft::SelfCollisionStats& t = sim.totalSelfCollision();
       j["self_contacts"] = t.contacts;
-      j["self_collision"] = {{"thickness", self->options().thickness},
-                             {"cull_flat_regions", self->options().cullFlatRegions},
+      j["self_collision"] = {{"thickness", self.thickness},
+                             {"cull_flat_regions", self.cullFlatRegions},
                              {"passes", t.passes},
                              {"candidates", t.candidates},
                              {"tests", t.tests},
@@ -555,7 +555,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     }
     if (model.triangleCount() > 1) {
       out << "  cloth        " << sim.selfIntersections() << " pairs of triangles intersecting at the end";
-      if (sim.selfCollider()) {
+      if (sim.options().selfCollision.enabled) {
         const weft::SelfCollisionStats& t = sim.totalSelfCollision();
         out << "; self-collision: " << t.contacts << " contacts (" << t.vertexTriangle << " vertex-triangle), "
             << t.failsafeChunks << " chunks needed the failsafe (" << t.frozen << " vertices stopped, " << t.unresolved

@@ -1,7 +1,6 @@
 // weft/weft.hpp — the embedding API in one include.
 #pragma once
 
-#include "weft/collide/bvh.hpp"
 #include "weft/collide/collision_model.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/collide/shapes.hpp"

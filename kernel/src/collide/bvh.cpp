@@ -1,4 +1,4 @@
-#include "weft/collide/bvh.hpp"
+#include "collide/bvh.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "../core/text.hpp"
-#include "weft/collide/bvh.hpp"
+#include "collide/bvh.hpp"
 
 namespace weft::bvh_detail {
 

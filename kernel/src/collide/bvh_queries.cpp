@@ -13,8 +13,8 @@
 
 #include "bvh_internal.hpp"
 #include "closest_point.hpp"
-#include "weft/collide/bvh.hpp"
-#include "weft/collide/geometry.hpp"
+#include "collide/bvh.hpp"
+#include "collide/geometry.hpp"
 
 namespace weft {
 

@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "weft/collide/geometry.hpp"
+#include "collide/geometry.hpp"
 
 namespace weft::detail {
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "collide/contact_solver.hpp"
 #include "contact_math.hpp"
 #include "mesh_queries.hpp"
 #include "weft/collide/collision_model.hpp"

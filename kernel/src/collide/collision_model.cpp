@@ -1,6 +1,7 @@
 // CollisionModel: mesh obstacles prepared once (see weft/collide/collision_model.hpp).
 #include "weft/collide/collision_model.hpp"
 
+#include "collide/contact_solver.hpp"
 #include "mesh_queries.hpp"
 #include "weft/collide/shapes.hpp"
 
@@ -22,6 +23,10 @@ CollisionModel::CollisionModel(const CollisionOptions& options)
     if (featureEdges_) c.featureEdges = detail::featureEdges(c, featureAngle_);
   }
 }
+
+CollisionModel::~CollisionModel() = default;
+
+std::size_t CollisionModel::meshCount() const { return meshes_.size(); }
 
 bool CollisionModel::matches(const CollisionOptions& options) const {
   if (options.meshes.size() != meshes_.size()) return false;

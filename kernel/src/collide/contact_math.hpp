@@ -9,6 +9,7 @@
 #include <initializer_list>
 #include <limits>
 
+#include "collide/bvh.hpp"
 #include "weft/collide/obstacles.hpp"
 #include "weft/core/kinematic_path.hpp"
 

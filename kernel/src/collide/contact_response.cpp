@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "collide/contact_solver.hpp"
 #include "mesh_queries.hpp"
 
 namespace weft::detail {

@@ -4,6 +4,7 @@
 // chunk's slide, for analytic obstacles and for (moving) meshes.
 #pragma once
 
+#include "collide/contact_solver.hpp"
 #include "contact_math.hpp"
 #include "weft/collide/obstacles.hpp"
 

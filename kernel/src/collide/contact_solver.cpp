@@ -1,6 +1,8 @@
 // ContactSolver: the particle and edge contact passes of a chunk (detection in parallel,
 // response per particle, the edge response serially in edge order), the clearance bound
 // that lets particles far from a mesh skip it, and the rollback's deepest penetration.
+#include "collide/contact_solver.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>

@@ -1,4 +1,4 @@
-#include "weft/collide/geometry.hpp"
+#include "collide/geometry.hpp"
 
 #include <algorithm>
 #include <cmath>

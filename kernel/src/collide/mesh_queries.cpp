@@ -7,6 +7,7 @@
 #include <tuple>
 
 #include "closest_point.hpp"
+#include "collide/contact_solver.hpp"
 
 namespace weft::detail {
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "collide/contact_solver.hpp"
 #include "contact_math.hpp"
 #include "weft/collide/obstacles.hpp"
 

@@ -12,6 +12,7 @@
 
 #include "bvh_internal.hpp"
 #include "closest_point.hpp"
+#include "collide/self_collider.hpp"
 
 namespace weft {
 

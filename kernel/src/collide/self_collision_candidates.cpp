@@ -7,6 +7,7 @@
 #include <span>
 #include <string>
 
+#include "collide/self_collider.hpp"
 #include "weft/collide/self_collision.hpp"
 
 namespace weft {

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "rigid/particle_contacts.hpp"
+
 namespace weft {
 
 namespace {

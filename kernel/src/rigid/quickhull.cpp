@@ -13,9 +13,9 @@
 #include <utility>
 #include <vector>
 
+#include "collide/geometry.hpp"
 #include "hull_internal.hpp"
 #include "rigid_text.hpp"
-#include "weft/collide/geometry.hpp"
 #include "weft/rigid/convex_hull.hpp"
 
 namespace weft {

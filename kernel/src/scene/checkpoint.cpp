@@ -25,6 +25,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "collide/self_collider.hpp"
 #include "weft/scene/simulation.hpp"
 
 #ifndef WEFT_VERSION_STRING

@@ -8,6 +8,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "collide/contact_solver.hpp"
+#include "collide/self_collider.hpp"
+#include "rigid/particle_contacts.hpp"
+
 namespace weft {
 
 namespace {

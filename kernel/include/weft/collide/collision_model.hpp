@@ -18,7 +18,6 @@
 #include <memory>
 #include <vector>
 
-#include "weft/collide/bvh.hpp"
 #include "weft/collide/obstacles.hpp"
 
 namespace weft {
@@ -28,9 +27,15 @@ class CollisionModel {
   /// Validates `options` (validateCollision) and prepares each of options.meshes. Throws
   /// std::invalid_argument naming the field.
   explicit CollisionModel(const CollisionOptions& options);
+  ~CollisionModel();
+  CollisionModel(const CollisionModel&) = delete;
+  CollisionModel& operator=(const CollisionModel&) = delete;
 
-  /// One per CollisionOptions::meshes, in order.
+  /// One per CollisionOptions::meshes, in order (MeshCollider is internal:
+  /// kernel/src/collide/contact_solver.hpp).
   const std::vector<MeshCollider>& meshes() const { return meshes_; }
+  /// Mesh obstacles prepared.
+  std::size_t meshCount() const;
   /// True when `options` has the meshes (vertices and triangles, bit for bit) and the
   /// feature angle this model was built from.
   bool matches(const CollisionOptions& options) const;

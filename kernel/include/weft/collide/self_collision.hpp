@@ -98,8 +98,6 @@
 #include <string>
 #include <vector>
 
-#include "weft/collide/bvh.hpp"
-#include "weft/collide/geometry.hpp"
 #include "weft/core/archive.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/core/types.hpp"
@@ -149,25 +147,6 @@ struct SelfCollisionStats {
   SelfCollisionStats& operator+=(const SelfCollisionStats& o);
 };
 
-/// What a continuous proximity query found (primitiveContact below).
-struct PrimitiveContact {
-  bool hit = false;
-  bool capped = false;               // the step cap was reached: reported as a contact without proof
-  double time = 0;                   // s in [0, 1] where the distance was below the threshold
-  double distance = 0;               // the distance there, m
-  double weights[4] = {0, 0, 0, 0};  // beta of the four vertices (see the design note)
-  double normal[3] = {0, 0, 0};      // unit, towards the first primitive; zero if undefined
-};
-
-/// A moving point p against a moving triangle (a, b, c), or a moving edge (p, a) against a
-/// moving edge (b, c): index 0 of each array is the position at s = 0, index 1 at s = 1.
-/// Returns the first s found with distance < threshold (> 0), starting at `start`; no hit
-/// proves the distance stayed >= threshold / 2 over [start, 1].
-PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<double> a[2], const Vec3<double> b[2],
-                                       const Vec3<double> c[2], double threshold, double start = 0);
-PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
-                                 const Vec3<double> b[2], double threshold, double start = 0);
-
 /// Pairs of the model's triangles sharing no particle that intersect at x: the exact test of
 /// geometry.hpp through a BVH built for the call (for reports and tests, not for the step).
 template <class S>
@@ -175,121 +154,10 @@ std::int64_t countSelfIntersections(const Model<S>& model, const Vec3Array<S>& x
 extern template std::int64_t countSelfIntersections(const Model<float>&, const Vec3Array<float>&, const Executor&);
 extern template std::int64_t countSelfIntersections(const Model<double>&, const Vec3Array<double>&, const Executor&);
 
-/// The self-collision pass of one Model (see the design note). Sized at construction.
+/// The self-collision pass itself (SelfCollider) and its continuous primitive queries are
+/// internal to weft: kernel/src/collide/self_collider.hpp. A Simulation reports what it does
+/// (Simulation::lastSelfCollision, totalSelfCollision, selfIntersections).
 template <class S>
-class SelfCollider {
- public:
-  /// The model's triangles (none: the pass does nothing); its BVH is built over x.
-  SelfCollider(const Model<S>& model, const SelfCollisionOptions& options, const Vec3Array<S>& x, const Executor& exec);
-
-  /// Resolves the chunk x0 -> x1 (length h, s) in place: x1 and v1 change.
-  SelfCollisionStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
-                             double h, const Executor& exec);
-
-  const SelfCollisionOptions& options() const { return options_; }
-  /// The skin, m (see the design note).
-  double skin() const { return skin_; }
-  /// Triangle pairs in the current candidate list.
-  Index candidateCount() const { return static_cast<Index>(pairs_.size()); }
-
-  /// Checkpoints: the candidate list and the skin boxes it was gathered for (a list gathered
-  /// at another time would cull other pairs, so a resumed run keeps this one).
-  void saveCarry(ArchiveWriter& out) const;
-  void loadCarry(ArchiveReader& in);
-
-  static constexpr Index kGrain = 256;  // triangle pairs per detection block
-
- private:
-  struct Contact {
-    Index vertex[4];  // VT: the vertex, then the triangle's corners; EE: one edge, then the other
-    bool vertexTriangle;
-    bool guard;        // also below the failsafe's threshold
-    double thickness;  // m, kept between the two
-    double weights[4];
-    double normal[3];
-  };
-  /// A vertex-triangle or edge-edge pair to advance (vertices as Contact's).
-  struct Primitive {
-    Index vertex[4];
-    bool vertexTriangle;
-  };
-  /// One block of kGrain candidate pairs: their primitive pairs (listed at the gathering,
-  /// those whose skin boxes come within the thickness), and what the last pass found.
-  struct Block {
-    std::vector<Primitive> primitives;
-    std::vector<Index> pairEnd;  // per pair of the block: the end of its primitives
-    std::vector<Contact> contacts;
-    std::int64_t tests = 0;
-    std::int64_t guards = 0;  // contacts below their failsafe threshold
-    double margin = 0;        // m: the least distance the contacts are proven to keep (theta / 2)
-  };
-  /// A cone of directions: unit axis and the cosine and sine of its half-angle (cos <= 0:
-  /// half a sphere or more, no use for culling).
-  struct Cone {
-    double axis[3];
-    double cos, sin;
-  };
-  /// Whether every vertex's x0 and x1 lie in its skin box (then the candidates cover the chunk).
-  bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
-  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates.
-  void gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
-                        SelfCollisionStats& stats);
-  /// Advancement on every candidate for the chunk x0 -> x1 into blocks_, with the failsafe's
-  /// flags.
-  void detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
-              SelfCollisionStats& stats);
-  /// Sizes the blocks and flags for the candidate list in pairs_.
-  void useCandidates();
-  /// Lists the primitive pairs of one block's triangle pairs (at a gathering).
-  void expandBlock(Index blockIndex);
-  /// The triangle pairs of each block's range that may hold a contact in this chunk
-  /// (thickness filter, owned primitives, advancement) into the block's contacts.
-  void detectBlock(Index blockIndex, const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, bool all);
-  /// Which internal nodes of the BVH are edge-connected (once, at construction).
-  void findConnectedNodes();
-  /// The normal cones of every BVH node for vertices anywhere in their skin boxes, and the
-  /// flat regions (flat_) among the connected nodes.
-  void findFlatRegions(const Executor& exec);
-  /// Gauss-Seidel over the contacts found, in block order; returns the largest
-  /// displacement of a vertex (m, as stored).
-  double respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h, SelfCollisionStats& stats);
-
-  static constexpr Index kVertexGrain = 4096;
-  /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
-  /// chunk's, and kept while every vertex stays inside its box.
-  static constexpr double kSkin = 0.5;
-  /// With flat regions culled, the skin is at most this share of the shortest triangle edge
-  /// (a corner moving 5 % of an edge turns a triangle's normal by at most ~25 degrees).
-  static constexpr double kConeSkin = 0.05;
-
-  const Model<S>* model_;
-  SelfCollisionOptions options_;
-  TriangleBvh<S> bvh_;
-  BvhPairScratch scratch_;
-  std::vector<TrianglePair> pairs_;    // the candidates: triangle pairs, sorted
-  std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
-  std::vector<Block> blocks_;
-  Index blocksUsed_ = 0;
-  std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
-  std::vector<double> displacement_;       // (n) m, moved by the current response pass
-  std::vector<double> thickness_;          // (n) m, each particle's cloth's thickness
-  std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
-  double thinnest_ = 0;                    // m, the least thickness of a particle
-  double skin_ = 0;                        // m
-  Vec3Array<S> skinLo_, skinHi_;           // (n x 3) each vertex's skin box
-  std::vector<Aabb<S>> triangleBox_;       // (triangles) each triangle's box over the chunk
-  std::vector<std::uint8_t> connected_;    // (nodes) the node's triangles are edge-connected
-  std::vector<std::uint8_t> flat_;         // (nodes) a flat region at the last gathering: not queried
-  std::vector<Cone> cones_;                // (nodes) scratch of findFlatRegions
-  std::vector<Cone> leafCones_;            // (triangles, by slot) likewise
-  std::vector<Aabb<S>> sweptBox_;          // (n) each vertex's box over the chunk (one per vertex: read by index)
-  bool candidatesValid_ = false;
-  bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
-  std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
-  std::vector<std::uint8_t> blockFlags_;
-};
-
-extern template class SelfCollider<float>;
-extern template class SelfCollider<double>;
+class SelfCollider;
 
 }  // namespace weft

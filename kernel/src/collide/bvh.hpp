@@ -95,7 +95,7 @@
 #include <span>
 #include <vector>
 
-#include "weft/collide/geometry.hpp"
+#include "collide/geometry.hpp"
 #include "weft/core/parallel.hpp"
 #include "weft/model/model.hpp"
 
