@@ -4,7 +4,8 @@
 # 1. `cmake --install BUILD_DIR` into a temporary prefix;
 # 2. find_package(weft) with only the kernel, assimp and nlohmann-json made unfindable;
 # 3. find_package(weft COMPONENTS io);
-# 4. the kernel program through pkg-config, no CMake;
+# 4. the kernel program through pkg-config, no CMake, and every installed header compiled on
+#    its own (self-contained, reaching no internal header: those are not installed);
 # 5. with --subdirectory, add_subdirectory() of this source tree (compiles weft again).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -34,6 +35,13 @@ libdir="$(ls -d "$work"/prefix/lib*/pkgconfig | head -n1)"
 # shellcheck disable=SC2046
 g++ -O2 "$here/main.cpp" -o "$work/consumer_pc" $(PKG_CONFIG_PATH="$libdir" pkg-config --cflags --libs weft)
 "$work/consumer_pc"
+
+echo "-- every installed header compiles on its own (so none reaches an internal one)"
+cflags="$(PKG_CONFIG_PATH="$libdir" pkg-config --cflags weft)"
+(cd "$work/prefix/include" && find weft -name '*.hpp' | sort) |
+  # shellcheck disable=SC2086
+  xargs -P"$jobs" -I{} sh -c 'printf "#include <%s>\n" "$1" | g++ -std=c++20 -fsyntax-only -x c++ - $2 ||
+    { echo "installed header $1 does not compile on its own" >&2; exit 255; }' _ {} "$cflags"
 
 if [ "${2:-}" = "--subdirectory" ]; then
   echo "-- add_subdirectory(weft)"
