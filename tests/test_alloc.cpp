@@ -197,6 +197,43 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
     }
 }
 
+TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
+  // (StepAllocation covers the default, block-Jacobi, with a failing step too.)
+  const ModelAndState<double> flag = makeFlag<double>(kFlagSize);
+  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Projective})
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE(::testing::Message() << preconditionerName(p) << ", " << threads << " thread(s)");
+      SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads,
+                                              defaultTimeStep(BuiltinScene::Flag, kFlagSize));
+      options.integration.preconditioner = p;
+      Simulation<double> sim(ModelAndState<double>{flag.model, flag.state}, options);
+      ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers, the projective factorisation
+      StepStatus status;
+      const Counts steps = countDuring([&] {
+        for (int k = 0; k < 20; ++k) status = sim.step();
+      });
+      ASSERT_TRUE(status.ok()) << status.message();
+      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
+      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      if (p != Preconditioner::Projective) continue;
+      // A new step size factorises once; alternating two cached ones allocates nothing.
+      const double dt = sim.timeStep();
+      sim.setTimeStep(dt / 2);
+      ASSERT_TRUE(sim.step().ok());
+      EXPECT_EQ(sim.lastWork().factorizations, 1);
+      const Counts alternating = countDuring([&] {
+        for (int k = 0; k < 4; ++k) {
+          sim.setTimeStep(k % 2 == 0 ? dt : dt / 2);
+          status = sim.step();
+        }
+      });
+      ASSERT_TRUE(status.ok()) << status.message();
+      EXPECT_EQ(sim.totalWork().factorizations, 2);
+      EXPECT_EQ(alternating.news, 0);
+      EXPECT_EQ(alternating.mallocs, 0);
+    }
+}
+
 TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {
   // Drag, gusty wind, repulsion and a kinematic bar, with effect profiling on, for an
   // explicit, an adaptive and the implicit method on 1 and 2 threads.

@@ -556,6 +556,7 @@ TEST(Cli, MessagesAreShortAndSayWhatHappened) {
   const CliRun study = weft("study --quick --no-plot --out /proc/weft-no-such-dir", true);
   EXPECT_EQ(study.exitCode, 2) << study.out;
   EXPECT_NE(study.out.find("cannot create the output directory '/proc/weft-no-such-dir'"), std::string::npos)
+        BadOption{"flag --integrator implicit --cg-preconditioner ilu", "--cg-preconditioner", "ilu"},
       << study.out;
   EXPECT_EQ(study.out.find("filesystem error"), std::string::npos) << study.out;
 }

@@ -254,6 +254,9 @@ int main(int argc, char** argv) {
       ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
   cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--cg-preconditioner", run.preconditioner,
+                  "implicit: CG preconditioner: jacobi | block-jacobi | projective (default block-jacobi)")
+      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective"}));
   cmd->add_option("--pd-iterations", run.projectiveIterations,
                   "projective: local/global iterations per step, one global solve each (1..10000; default 10)")
       ->check(CLI::Range(1, 10000));

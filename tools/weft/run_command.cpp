@@ -227,6 +227,7 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
   if (o.absoluteTolerance) sim.integration.absoluteTolerance = *o.absoluteTolerance;
   if (o.linearTolerance) sim.integration.linearTolerance = *o.linearTolerance;
   if (o.maxLinearIterations) sim.integration.maxLinearIterations = static_cast<weft::Index>(*o.maxLinearIterations);
+  if (o.preconditioner) sim.integration.preconditioner = weft::parsePreconditioner(*o.preconditioner);
   if (o.projectiveIterations) sim.integration.projectiveIterations = *o.projectiveIterations;
   if (o.fixedStep) sim.integration.adaptive = false;
   if (o.drag) sim.effects.drag = *o.drag;

@@ -1,5 +1,6 @@
 #include "weft/effects/spring_jacobian.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -63,6 +64,48 @@ template <class S, bool kDamping>
   }
 }
 
+// count springs of one grid family starting at consecutive particles: u = p[t] - p[t + offset],
+// coefficients of springs [s0, s0 + count) (pointers already offset), g[t] as above.
+template <class S, bool kDamping>
+[[gnu::noinline]] void stridedProducts(Index count, Index offset, const S* __restrict px, const S* __restrict py,
+                                       const S* __restrict pz, const S* __restrict dx, const S* __restrict dy,
+                                       const S* __restrict dz, const S* __restrict alpha, const S* __restrict beta,
+                                       const S* __restrict gamma, S* __restrict gx, S* __restrict gy,
+                                       S* __restrict gz) {
+  for (Index t = 0; t < count; ++t) {
+    const Index j = t + offset;
+    const S ux = px[t] - px[j], uy = py[t] - py[j], uz = pz[t] - pz[j];
+    const S along = (kDamping ? beta[t] + gamma[t] : beta[t]) * (dx[t] * ux + dy[t] * uy + dz[t] * uz);
+    gx[t] = alpha[t] * ux + along * dx[t];
+    gy[t] = alpha[t] * uy + along * dy[t];
+    gz[t] = alpha[t] * uz + along * dz[t];
+  }
+}
+
+// y[t] += g[t] - g[t - offset] over [0, count): one family's share of the stencil gather.
+template <class S>
+[[gnu::noinline]] void addStencilFamily(Index count, Index offset, const S* __restrict gx, const S* __restrict gy,
+                                        const S* __restrict gz, S* __restrict yx, S* __restrict yy, S* __restrict yz) {
+  for (Index t = 0; t < count; ++t) {
+    yx[t] += gx[t] - gx[t - offset];
+    yy[t] += gy[t] - gy[t - offset];
+    yz[t] += gz[t] - gz[t - offset];
+  }
+}
+
+// y[t] += (m[t] + drag) p[t] over [0, count).
+template <class S>
+[[gnu::noinline]] void addMassTerm(Index count, const S* __restrict mass, S drag, const S* __restrict px,
+                                   const S* __restrict py, const S* __restrict pz, S* __restrict yx, S* __restrict yy,
+                                   S* __restrict yz) {
+  for (Index t = 0; t < count; ++t) {
+    const S mi = mass[t] + drag;
+    yx[t] += mi * px[t];
+    yy[t] += mi * py[t];
+    yz[t] += mi * pz[t];
+  }
+}
+
 }  // namespace
 
 template <class S>
@@ -73,7 +116,8 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       beta_(model.springCount()),
       gamma_(model.springCount()),
       g_(model.springCount(), 3),
-      diagonal_(model.particleCount(), 3) {
+      diagonal_(model.particleCount(), 3),
+      offDiagonal_(model.particleCount(), 3) {
   incidence_ = &model.springIncidence();  // built once per Model
   direction_.setZero();
   alpha_.setZero();
@@ -81,6 +125,15 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
   gamma_.setZero();
   g_.setZero();
   diagonal_.setZero();
+  offDiagonal_.setZero();
+  if (const auto& grid = model.grid(); grid && !grid->families.empty()) {
+    for (const GridFamily<S>& f : grid->families) {
+      gridOffset_.push_back(static_cast<Index>(f.rowOffset) * grid->width + f.columnOffset);
+      gridPad_ = std::max(gridPad_, gridOffset_.back());
+    }
+    gridStride_ = gridPad_ + model.particleCount();
+    gridG_.assign(grid->families.size() * 3 * static_cast<size_t>(gridStride_), S(0));
+  }
 }
 
 template <class S>
@@ -97,20 +150,75 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
     const Index* off = incidence_->offsets.data();
     const Index* inc = incidence_->entries.data();
     for (Index i = b; i < e; ++i) {
-      S sum[3] = {0, 0, 0};
+      S sum[3] = {0, 0, 0}, cross[3] = {0, 0, 0};
       for (Index k = off[i]; k < off[i + 1]; ++k) {
         const Index s = inc[k] >> 1;
         const S along = beta_[s] + gamma_[s];
         for (int c = 0; c < 3; ++c) sum[c] += alpha_[s] + along * direction_(s, c) * direction_(s, c);
+        cross[0] += along * direction_(s, 0) * direction_(s, 1);
+        cross[1] += along * direction_(s, 0) * direction_(s, 2);
+        cross[2] += along * direction_(s, 1) * direction_(s, 2);
       }
-      for (int c = 0; c < 3; ++c) diagonal_(i, c) = model_->mass()[i] + dragTerm_ + sum[c];
+      for (int c = 0; c < 3; ++c) {
+        diagonal_(i, c) = model_->mass()[i] + dragTerm_ + sum[c];
+        offDiagonal_(i, c) = cross[c];
+      }
     }
   });
 }
 
 template <class S>
 template <bool kSystem>
+void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
+  const GridLayout<S>& grid = *model_->grid();
+  const Index W = grid.width, H = grid.height;
+  const Index families = static_cast<Index>(grid.families.size());
+  const auto slot = [&](Index k, int c) {
+    return gridG_.data() + (static_cast<size_t>(3 * k + c)) * static_cast<size_t>(gridStride_) + gridPad_;
+  };
+  // Springs, family by family over chunks of rows (slots without a spring stay 0).
+  const Index rowGrain = std::max<Index>(1, ForceField<S>::kSpringGrain / std::max<Index>(W, 1));
+  exec.parallelFor(H, rowGrain, [&](Index r0, Index r1) {
+    for (Index k = 0; k < families; ++k) {
+      const GridFamily<S>& f = grid.families[static_cast<size_t>(k)];
+      const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
+      const Index count = c1 - c0, last = std::min<Index>(r1, H - f.rowOffset);
+      S* gx = slot(k, 0);
+      S* gy = slot(k, 1);
+      S* gz = slot(k, 2);
+      for (Index r = r0; r < last; ++r) {
+        const Index i = r * W + c0, s = f.firstSpring + r * count;
+        stridedProducts<S, kSystem>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
+                                    col(p, 2) + i, col(direction_, 0) + s, col(direction_, 1) + s,
+                                    col(direction_, 2) + s, alpha_.data() + s, beta_.data() + s, gamma_.data() + s,
+                                    gx + i, gy + i, gz + i);
+      }
+    }
+  });
+  // Particles: +g_k[i] - g_k[i - offset_k], families in order, then the mass term.
+  constexpr Index kBlock = ForceField<S>::kSinkBlock;
+  exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
+    alignas(64) S yx[kBlock], yy[kBlock], yz[kBlock];
+    const Index m = e - b;
+    std::fill_n(yx, m, S(0));
+    std::fill_n(yy, m, S(0));
+    std::fill_n(yz, m, S(0));
+    for (Index k = 0; k < families; ++k)
+      addStencilFamily(m, gridOffset_[static_cast<size_t>(k)], slot(k, 0) + b, slot(k, 1) + b, slot(k, 2) + b, yx, yy,
+                       yz);
+    if constexpr (kSystem)
+      addMassTerm(m, model_->mass().data() + b, dragTerm_, col(p, 0) + b, col(p, 1) + b, col(p, 2) + b, yx, yy, yz);
+    sink(b, m, yx, yy, yz);
+  });
+}
+
+template <class S>
+template <bool kSystem>
 void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
+  if (!gridG_.empty()) {
+    gridProduct<kSystem>(p, sink, exec);
+    return;
+  }
   const Springs<S>& sp = model_->springs();
   exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
     springProducts<S, kSystem>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),

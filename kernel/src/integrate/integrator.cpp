@@ -57,6 +57,24 @@ IntegratorKind parseIntegrator(const std::string& name) {
   throw std::invalid_argument("integrator must be one of " + names + "; got '" + name + "'");
 }
 
+const char* preconditionerName(Preconditioner p) {
+  switch (p) {
+    case Preconditioner::Jacobi:
+      return "jacobi";
+    case Preconditioner::BlockJacobi:
+      return "block-jacobi";
+    case Preconditioner::Projective:
+      return "projective";
+  }
+  return "unknown";
+}
+
+Preconditioner parsePreconditioner(const std::string& name) {
+  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Projective})
+    if (name == preconditionerName(p)) return p;
+  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective; got '" + name + "'");
+}
+
 int integratorOrder(IntegratorKind kind) { return traits(kind).order; }
 
 int integratorForceEvaluations(IntegratorKind kind) { return traits(kind).forceEvaluations; }
@@ -87,6 +105,10 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
   if (!(std::isfinite(o.linearTolerance) && o.linearTolerance >= 0 && o.linearTolerance < 1))
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
   if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
+  if (o.preconditioner != Preconditioner::Jacobi && o.preconditioner != Preconditioner::BlockJacobi &&
+      o.preconditioner != Preconditioner::Projective)
+    bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)),
+        "must be Jacobi, BlockJacobi or Projective");
   if (o.projectiveIterations < 1 || o.projectiveIterations > 10000)
     bad("projectiveIterations", std::to_string(o.projectiveIterations), "must be in 1..10000");
 }

@@ -205,7 +205,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     const std::string f = "integration";
     r.object(j, f,
              {"adaptive", "rtol", "atol", "min_substep", "max_substeps", "cg_tolerance", "cg_max_iterations",
-              "projective_iterations"});
+              "cg_preconditioner", "projective_iterations"});
     IntegratorOptions& io = o.integration;
     io.adaptive = r.boolean(j, f, "adaptive", io.adaptive);
     io.relativeTolerance = r.anyNumber(j, f, "rtol", io.relativeTolerance);
@@ -215,6 +215,8 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.linearTolerance = r.anyNumber(j, f, "cg_tolerance", io.linearTolerance);
     io.maxLinearIterations =
         static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
+    io.preconditioner = parsePreconditioner(r.choice(j, f, "cg_preconditioner", preconditionerName(io.preconditioner),
+                                                     {"jacobi", "block-jacobi", "projective"}));
     io.projectiveIterations =
         static_cast<int>(r.integer(j, f, "projective_iterations", io.projectiveIterations, 1, 10000));
     // Ranges are the kernel's; the integer counts keep the file's cap of 2^30.

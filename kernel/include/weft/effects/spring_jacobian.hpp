@@ -27,6 +27,13 @@
 // to a sink block by block (blocks of ForceField::kSinkBlock particles), so the caller can
 // fuse its own per-particle work (and per-block reductions) into the same pass.
 //
+// On a model built as a regular grid (Model::grid()) the products run through the grid
+// stencil instead, like the GridStencil force strategy: per family and row, the springs'
+// products are computed from contiguous loads into a per-family buffer indexed by the
+// spring's first particle (zero where no spring starts), and particle i then sums
+// +g_k[i] - g_k[i - offset_k] over the families in their fixed order: no index lists, and
+// the same order for any thread count.
+//
 // Everything is sized at construction; linearize() and the products never allocate.
 #pragma once
 
@@ -43,7 +50,7 @@ class SpringJacobian {
   explicit SpringJacobian(const Model<S>& model);
 
   /// Caches the springs' linearisation at positions x for a step h (s), and the diagonal
-  /// of A (for a Jacobi preconditioner). `drag` (N s/m) is a viscous drag -c v on every
+  /// blocks of A (for a Jacobi or block-Jacobi preconditioner). `drag` (N s/m) is a viscous drag -c v on every
   /// particle: it adds h c I to A (ParticleEffects::drag; 0 = none).
   void linearize(const Vec3Array<S>& x, S h, const Executor& exec, S drag = 0);
 
@@ -55,11 +62,17 @@ class SpringJacobian {
 
   /// Diagonal of A at the linearisation, (n x 3), kg.
   const Vec3Array<S>& diagonal() const { return diagonal_; }
+  /// Off-diagonal entries (xy, xz, yz) of each particle's 3x3 diagonal block of A, (n x 3),
+  /// kg: with diagonal(), the blocks a block-Jacobi preconditioner inverts.
+  const Vec3Array<S>& offDiagonal() const { return offDiagonal_; }
   const Model<S>& model() const { return *model_; }
 
  private:
   template <bool kSystem>
   void product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);
+
+  template <bool kSystem>
+  void gridProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);
 
   const Model<S>* model_;
   const Incidence* incidence_ = nullptr;  // the Model's particle -> spring lists (entry 2 s + side)
@@ -69,7 +82,14 @@ class SpringJacobian {
   ScalarArray<S> gamma_;                  // (m) h kd, kg
   Vec3Array<S> g_;                        // (m x 3) per-spring product, on endpoint a
   Vec3Array<S> diagonal_;                 // (n x 3) diag(A)
+  Vec3Array<S> offDiagonal_;              // (n x 3) xy, xz, yz of A's diagonal blocks
   S dragTerm_ = 0;                        // h c, kg (the drag's share of A's diagonal)
+  // Grid models: per family and axis, the product of the spring starting at each particle,
+  // after gridPad_ leading zeros (so i - offset_k is never negative).
+  std::vector<S> gridG_;
+  std::vector<Index> gridOffset_;  // per family: rowOffset W + columnOffset
+  Index gridPad_ = 0;
+  Index gridStride_ = 0;  // gridPad_ + n
 };
 
 extern template class SpringJacobian<float>;
