@@ -11,8 +11,8 @@
 #include <string>
 
 #include "support/test_support.hpp"
-#include "weft/model/builder.hpp"
-#include "weft/model/builders.hpp"
+#include "weft/model/model_builder.hpp"
+#include "weft/model/ropes_and_grids.hpp"
 #include "weft/rigid/rigid_world.hpp"
 #include "weft/scene/builtin_scenes.hpp"
 #include "weft/scene/rigid_scenes.hpp"

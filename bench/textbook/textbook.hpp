@@ -8,7 +8,7 @@
 #include <cmath>
 #include <vector>
 
-#include "weft/model/builder.hpp"
+#include "weft/model/model_builder.hpp"
 
 namespace textbook {
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes grid3x3.3ds, the 3DS twin of grid3x3.obj (tests/test_mesh.cpp reads both).
+"""Writes grid3x3.3ds, the 3DS twin of grid3x3.obj (tests/test_io_mesh.cpp reads both).
 
 A 3 x 3 grid of vertices 0.5 m apart in the z = 0 plane, 2 x 2 quads split into
 8 triangles, with the same vertex order, corners and winding as grid3x3.obj. The 3DS

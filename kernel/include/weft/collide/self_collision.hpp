@@ -50,7 +50,7 @@
 //               solved for: there is no cubic whose roots could be lost. Steps are at least
 //               theta / (2 L) long, so a query costs at most 2 L / theta + 2 distance
 //               evaluations (capped at 64; a capped query reports a contact, which only
-//               costs a response). tests/test_self_collision.cpp checks this against
+//               costs a response). tests/test_collide_self_collision.cpp checks this against
 //               minimum distances found independently in long double.
 //   response    Each contact (d < thickness at some s) gives a normal n (between the closest
 //               points at s) and weights beta (VT: 1 on the vertex, -b_i on the triangle's

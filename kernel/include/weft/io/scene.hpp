@@ -26,8 +26,8 @@
 #include <string>
 #include <vector>
 
-#include "weft/model/builders.hpp"
 #include "weft/model/cloth_mesh.hpp"
+#include "weft/model/ropes_and_grids.hpp"
 #include "weft/model/triangle_mesh.hpp"
 #include "weft/scene/simulation.hpp"
 

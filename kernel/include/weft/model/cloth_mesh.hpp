@@ -30,7 +30,7 @@
 // mesh with cleanMesh first).
 #pragma once
 
-#include "weft/model/builder.hpp"
+#include "weft/model/model_builder.hpp"
 #include "weft/model/triangle_mesh.hpp"
 
 namespace weft {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "weft/model/builders.hpp"
+#include "weft/model/ropes_and_grids.hpp"
 #include "weft/scene/simulation.hpp"
 
 namespace weft {

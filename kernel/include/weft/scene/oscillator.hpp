@@ -14,7 +14,7 @@
 #include <utility>
 
 #include "weft/integrate/integrator.hpp"
-#include "weft/model/builder.hpp"
+#include "weft/model/model_builder.hpp"
 #include "weft/scene/simulation.hpp"
 
 namespace weft {

@@ -28,7 +28,7 @@
 
 #include <vector>
 
-#include "weft/model/builders.hpp"
+#include "weft/model/ropes_and_grids.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
 namespace weft {

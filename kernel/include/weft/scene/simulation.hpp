@@ -38,7 +38,7 @@
 #include "weft/core/kinematic_path.hpp"
 #include "weft/integrate/integrator.hpp"
 #include "weft/integrate/stability.hpp"
-#include "weft/model/builder.hpp"
+#include "weft/model/model_builder.hpp"
 #include "weft/rigid/particle_coupling.hpp"
 #include "weft/rigid/rigid_world.hpp"
 

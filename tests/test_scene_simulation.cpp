@@ -1,4 +1,4 @@
-// tests/test_simulation.cpp — Simulation: bitwise determinism across thread counts and
+// tests/test_scene_simulation.cpp — Simulation: bitwise determinism across thread counts and
 // arenas, the stability check and failure handling, option validation, agreement with
 // the textbook RK4 baseline.
 #include <gtest/gtest.h>

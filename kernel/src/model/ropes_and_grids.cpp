@@ -1,4 +1,4 @@
-#include "weft/model/builders.hpp"
+#include "weft/model/ropes_and_grids.hpp"
 
 #include <cmath>
 #include <stdexcept>

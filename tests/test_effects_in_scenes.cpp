@@ -1,4 +1,4 @@
-// tests/test_scene_effects.cpp — wind, universal repulsion and kinematic pins: the force
+// tests/test_effects_in_scenes.cpp — wind, universal repulsion and kinematic pins: the force
 // laws against independent formulas, the gust field's statistics, the neighbour search
 // against all pairs, pins on their paths, and bitwise determinism for 1 and 2 threads
 // with every effect on.

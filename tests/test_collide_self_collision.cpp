@@ -1,4 +1,4 @@
-// tests/test_self_collision.cpp — cloth against itself and against other cloths
+// tests/test_collide_self_collision.cpp — cloth against itself and against other cloths
 // (weft/collide/self_collision.hpp).
 //
 //  * The continuous proximity queries never miss a touching pair: random, near-degenerate

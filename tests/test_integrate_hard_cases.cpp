@@ -1,4 +1,4 @@
-// tests/test_hard_cases.cpp — the hard cases of issue 4, each with its expected outcome,
+// tests/test_integrate_hard_cases.cpp — the hard cases of issue 4, each with its expected outcome,
 // in float and double and on 1 and 2 threads (the two runs must agree bit for bit):
 //   * RK4 (and symplectic Euler, Verlet) at 0.95x the stability limit stay bounded for
 //     10^5 steps; at 1.1x the stability check stops them: a status, not NaN, not a crash.

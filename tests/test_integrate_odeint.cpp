@@ -1,4 +1,4 @@
-// tests/test_odeint.cpp — weft's integrators cross-checked against Boost.Odeint.
+// tests/test_integrate_odeint.cpp — weft's integrators cross-checked against Boost.Odeint.
 //
 // The cloth comparisons give odeint a right-hand side built on weft's own ForceField
 // (same model, same gravity, same force strategy, one thread), so what is compared is the

@@ -1,4 +1,4 @@
-// tests/test_bvh.cpp — the triangle BVH (weft/collide/bvh.hpp) and its geometry
+// tests/test_collide_bvh.cpp — the triangle BVH (weft/collide/bvh.hpp) and its geometry
 // (weft/collide/geometry.hpp): exact predicates against integer arithmetic, the
 // triangle-triangle test on constructed degenerate cases and against a floating-point
 // reference, closest points against a reference, every BVH query against brute force on

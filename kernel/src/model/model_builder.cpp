@@ -1,4 +1,4 @@
-#include "weft/model/builder.hpp"
+#include "weft/model/model_builder.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-// tests/test_mesh.cpp — triangle meshes: cleaning (weld, degenerate, duplicate, edges), the
+// tests/test_io_mesh.cpp — triangle meshes: cleaning (weld, degenerate, duplicate, edges), the
 // cloth builder addClothMesh, and mesh files through assimp (weft::io).
 //
 // Test data (tests/data/, WEFT_TEST_DATA_DIR): the OBJ files are hand-written text, each
