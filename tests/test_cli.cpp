@@ -47,8 +47,9 @@ nlohmann::json runJson(const std::string& args) {
 TEST(Cli, JsonSummaryHasTheDocumentedKeys) {
   const nlohmann::json j = runJson("run flag --steps 20");
   ASSERT_TRUE(j.is_object()) << j.dump();
-  for (const char* key : {"scene", "particles", "springs", "integrator", "precision", "threads", "steps", "dt",
-                          "wall_seconds", "steps_per_second", "spring_evals_per_second", "status", "state_hash"})
+  for (const char* key :
+       {"scene", "particles", "springs", "integrator", "precision", "threads", "steps", "dt", "wall_seconds",
+        "steps_per_second", "spring_evals_per_second", "status", "state_hash", "max_stretch", "mean_stretch"})
     EXPECT_TRUE(j.contains(key)) << "missing key " << key << " in " << j.dump();
   if (testing::Test::HasFailure()) return;
 
@@ -159,6 +160,34 @@ TEST(Cli, StateHashMatchesTheLibrary) {
   char expected[19];
   std::snprintf(expected, sizeof expected, "0x%016llx", static_cast<unsigned long long>(stateHash(sim.state())));
   EXPECT_EQ(j["state_hash"], expected);
+}
+
+TEST(Cli, StretchIsTheLibrarysOverTheStructuralSprings) {
+  // The flag sagging under gravity for 0.06 s: its structural springs stretch. The summary's
+  // max_stretch and mean_stretch are weft::stretch of the same run's end state.
+  const nlohmann::json j = runJson("run flag --size 24 --steps 300 --threads 2");
+  ASSERT_TRUE(j.is_object());
+  ASSERT_TRUE(j.contains("max_stretch") && j.contains("mean_stretch")) << j.dump();
+  SimulationOptions options;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, 24);
+  options.threads = 1;
+  Simulation<double> sim(makeFlag<double>(24), options);
+  ASSERT_TRUE(sim.run(300).ok());
+  const Stretch expected = stretch(sim.model(), sim.state());
+  EXPECT_EQ(expected.springs, sim.model().springCountByClass()[0]);
+  EXPECT_GT(expected.max, 0.0);
+  EXPECT_GT(expected.max, expected.mean);
+  // JSON prints doubles in full (shortest round trip).
+  EXPECT_EQ(j["max_stretch"].get<double>(), expected.max);
+  EXPECT_EQ(j["mean_stretch"].get<double>(), expected.mean);
+
+  // In the text summary too; a scene without structural springs (rigid bodies only) has null.
+  const CliRun text = weft("run flag --size 8 --steps 5", false);
+  EXPECT_NE(text.out.find("  stretch      max "), std::string::npos) << text.out;
+  const nlohmann::json pile = runJson("run stack --steps 1");
+  ASSERT_TRUE(pile.is_object());
+  EXPECT_TRUE(pile["max_stretch"].is_null()) << pile.dump();
+  EXPECT_TRUE(pile["mean_stretch"].is_null()) << pile.dump();
 }
 
 TEST(Cli, StateHashIsTheSameForOneAndTwoThreads) {

@@ -701,5 +701,62 @@ TEST(Energy, KineticSpringAndGravityOfAKnownState) {
   EXPECT_THROW(energy(m.model, wrong, {0, -9.81, 0}), std::invalid_argument);
 }
 
+TEST(Stretch, MaxAndMeanOfTheStructuralSpringsByHand) {
+  // Four particles: structural springs 0-1 (rest 0.5 m, now 0.6 m long: +20 %), 1-2 (rest
+  // 1 m, now 0.9 m: -10 %) and 2-3 (rest 0 m: no stretch, left out); a shear spring 0-2
+  // (rest 1 m, now 1.5 m: +50 %) and a bend spring 1-3 (rest 2 m, now 3 m: +50 %) are not
+  // structural.
+  ModelBuilder<double> b;
+  const Index p0 = b.addParticle({0, 0, 0}, 1.0);
+  const Index p1 = b.addParticle({0, 0, 0.6}, 1.0);
+  const Index p2 = b.addParticle({0, 0.9, 0.6}, 1.0);
+  const Index p3 = b.addParticle({0, 0.9, 0.6}, 1.0);
+  b.addSpring(p0, p1, {100, 0}, SpringClass::Structural, 0.5);
+  b.addSpring(p1, p2, {100, 0}, SpringClass::Structural, 1.0);
+  b.addSpring(p2, p3, {100, 0}, SpringClass::Structural, 0.0);
+  b.addSpring(p0, p2, {100, 0}, SpringClass::Shear, std::sqrt(0.81 + 0.36) / 1.5);
+  b.addSpring(p1, p3, {100, 0}, SpringClass::Bend, 0.9 / 1.5);
+  const ModelAndState<double> m = b.build();
+
+  const Stretch s = stretch(m.model, m.state);
+  EXPECT_EQ(s.springs, 2);
+  EXPECT_NEAR(s.max, 0.6 / 0.5 - 1, 1e-15);
+  EXPECT_NEAR(s.mean, ((0.6 / 0.5 - 1) + (0.9 / 1.0 - 1)) / 2, 1e-15);  // (0.2 - 0.1) / 2 = 0.05
+  const Stretch shear = stretch(m.model, m.state, SpringClass::Shear);
+  EXPECT_EQ(shear.springs, 1);
+  EXPECT_NEAR(shear.max, 0.5, 1e-15);
+  EXPECT_NEAR(shear.mean, 0.5, 1e-15);
+  EXPECT_NEAR(stretch(m.model, m.state, SpringClass::Bend).max, 0.5, 1e-15);
+
+  // Float gives the same to float's rounding.
+  ModelBuilder<float> bf;
+  bf.addParticle({0, 0, 0}, 1.0);
+  bf.addParticle({0, 0, 0.6}, 1.0);
+  bf.addSpring(0, 1, {100, 0}, SpringClass::Structural, 0.5);
+  const ModelAndState<float> mf = bf.build();
+  EXPECT_NEAR(stretch(mf.model, mf.state).max, 0.2, 1e-6);
+
+  // A flag at rest: no structural spring stretched or compressed.
+  const ModelAndState<double> flag = makeFlag<double>(8);
+  const Stretch rest = stretch(flag.model, flag.state);
+  EXPECT_EQ(rest.springs, flag.model.springCountByClass()[0]);
+  EXPECT_NEAR(rest.max, 0, 1e-15);
+  EXPECT_NEAR(rest.mean, 0, 1e-15);
+
+  // No spring of the class: nothing counted.
+  const Stretch none = stretch(mf.model, mf.state, SpringClass::Bend);
+  EXPECT_EQ(none.springs, 0);
+  EXPECT_EQ(none.max, 0);
+  EXPECT_EQ(none.mean, 0);
+}
+
+TEST(Stretch, BadInputsAreRefusedByName) {
+  const ModelAndState<double> flag = makeFlag<double>(4);
+  State<double> wrong = flag.state;
+  wrong.x.resize(3, 3);
+  expectInvalid([&] { stretch(flag.model, wrong); }, "stretch: the state has 3 positions", "16 particles");
+  expectInvalid([&] { stretch(flag.model, flag.state, static_cast<SpringClass>(7)); }, "kind", "got 7");
+}
+
 }  // namespace
 }  // namespace weft::test

@@ -400,6 +400,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
   const auto byClass = model.springCountByClass();
   const weft::Energy e = weft::energy(model, state, options.gravity);
+  const weft::Stretch stretch = weft::stretch(model, state);  // the structural springs at the end
   const double lowest = model.particleCount() > 0 ? static_cast<double>(state.x.col(1).minCoeff()) : 0.0;
   const double stableDt = weft::estimateStableTimeStep(model, options.integrator);
   const weft::SceneEffectTimes times = sim.effectTimes();
@@ -454,6 +455,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["state_hash"] = hash;
     j["energy"] = {{"kinetic", e.kinetic}, {"spring", e.spring}, {"gravity", e.gravity}};
     j["lowest_y"] = lowest;
+    // |x_a - x_b| / rest - 1 over the structural springs at the end (null without any).
+    if (stretch.springs > 0) {
+      j["max_stretch"] = stretch.max;
+      j["mean_stretch"] = stretch.mean;
+    } else {
+      j["max_stretch"] = nullptr;
+      j["mean_stretch"] = nullptr;
+    }
     if (sim.contactSolver()) {
       // At the end of the run: particles in contact, the deepest penetration (m); over the
       // run: chunks rolled back, and particles that ended beyond a thin obstacle or inside one.
@@ -569,8 +578,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << "  wall time    " << wall << " s: " << stepsPerSecond << " steps/s, " << springEvalsPerSecond / 1e6
         << " M spring evaluations/s\n"
         << "  energy       kinetic " << e.kinetic << " J, spring " << e.spring << " J, gravity " << e.gravity
-        << " J; lowest point y = " << lowest << " m\n"
-        << "  status       "
+        << " J; lowest point y = " << lowest << " m\n";
+    if (stretch.springs > 0)
+      out << "  stretch      max " << stretch.max << ", mean " << stretch.mean << " over the " << stretch.springs
+          << " structural springs at the end (length / rest length - 1)\n";
+    out << "  status       "
         << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
                               std::to_string(done) + " of " + std::to_string(steps)
             : status.ok() ? std::string("ok")
