@@ -13,7 +13,7 @@ packages=(
   nlohmann-json3-dev               # JSON output of `weft run --json`
   libassimp-dev                    # assimp: mesh import (OBJ, 3DS, ...) for weft::io
   libtinygltf-dev                  # tinygltf (its header): glTF frames of `weft run --format gltf`, weft::io
-  libboost-dev                     # Boost.Odeint (header-only): test-only cross-check of rk4/rk45
+  libboost-dev                     # Boost.Odeint (header-only): cross-check of rk4/rk45 (tests), BM_Peer_Odeint_Rk4 (bench)
   python3-matplotlib               # plots of `weft study` (run with /usr/bin/python3)
   libosmesa6-dev libpng-dev        # `weft render`: Mesa's offscreen OpenGL (llvmpipe, no display or GPU) and PNG files
   libglfw3-dev                     # `weft view`: a window with an OpenGL 3.3 core context
@@ -23,7 +23,7 @@ packages=(
 )
 
 # Peers, optional (WEFT_PEERS=1 bash tools/setup.sh): weft_bench builds BM_Peer_Embree_*
-# when Embree is found and BM_Peer_Bullet_Pile when Bullet is (docs/benchmarks.md).
+# when Embree is found and BM_Peer_Bullet_Pile / BM_Peer_Bullet_Cloth when Bullet is (docs/benchmarks.md).
 if [ "${WEFT_PEERS:-0}" = "1" ]; then
   packages+=(libembree-dev libbullet-dev)
 fi
