@@ -434,14 +434,14 @@ constexpr Index kCheckEvery = 1;
 template <class S>
 void expectNeverIntersects(const HardScene& scene) {
   Simulation<S> sim = makeScene<S>(scene.name, scene.size, true);
-  ASSERT_EQ(sim.selfIntersections(), 0) << "the scene starts intersecting";
+  ASSERT_EQ(sim.selfIntersectionCount(), 0) << "the scene starts intersecting";
   const Index steps = static_cast<Index>(std::ceil(scene.seconds / sim.timeStep()));
   std::int64_t worst = 0;
   for (Index k = 0; k < steps; ++k) {
     const StepStatus status = sim.step();
     ASSERT_TRUE(status.ok()) << scene.name << " step " << k << ": " << status.message();
     if ((k + 1) % kCheckEvery != 0 && k + 1 != steps) continue;
-    const std::int64_t pairs = sim.selfIntersections();
+    const std::int64_t pairs = sim.selfIntersectionCount();
     if (pairs > 0 && worst == 0) ADD_FAILURE() << scene.name << ": " << pairs << " intersecting pairs after step " << k;
     worst = std::max(worst, pairs);
   }
@@ -554,7 +554,7 @@ TEST(SelfCollisionScenes, WithoutSelfCollisionTheClothIntersects) {
     const Index steps = static_cast<Index>(std::ceil(scene.seconds / sim.timeStep()));
     std::int64_t worst = 0;
     for (Index k = 0; k < steps && sim.step().ok(); ++k)
-      if (k % 10 == 0) worst = std::max(worst, sim.selfIntersections());
+      if (k % 10 == 0) worst = std::max(worst, sim.selfIntersectionCount());
     std::cout << "[ without self-collision ] " << scene.name << ": up to " << worst << " intersecting pairs\n";
     intersecting += worst > 0 ? 1 : 0;
   }
@@ -622,7 +622,7 @@ TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
     for (Index i = scene.lower; i < n; ++i) upperBottom = std::min(upperBottom, sim.state().x(i, 1));
     const double gap = upperBottom - lowerTop, expected = 0.5 * (0.004 + upper);
     EXPECT_NEAR(gap, expected, 0.15 * expected) << "upper thickness " << upper;
-    EXPECT_EQ(sim.selfIntersections(), 0);
+    EXPECT_EQ(sim.selfIntersectionCount(), 0);
   }
 }
 
@@ -660,7 +660,7 @@ TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
   EXPECT_GT(sim.lastSelfCollision().contacts, 0) << "the layers should touch";
   EXPECT_LT(fastest, 0.01) << "m/s over the last 0.5 s";
   EXPECT_LT((upperCentre() - before).norm(), 1e-4) << "m of creep in 0.5 s";
-  EXPECT_EQ(sim.selfIntersections(), 0);
+  EXPECT_EQ(sim.selfIntersectionCount(), 0);
   // The layers lie a thickness apart: the upper cloth rests on the lower one, not in it.
   double lowest = 1;
   for (Index i = lower; i < n; ++i) lowest = std::min(lowest, sim.state().x(i, 1));

@@ -182,7 +182,7 @@ TEST(OdeintCloth, FixedStepRk45MatchesDopri5) {
   ASSERT_TRUE(status.ok()) << status.message();
   // One substep per step, six evaluations each (first same as last), plus A_1 once.
   EXPECT_EQ(sim.totalWork().substeps, steps);
-  EXPECT_EQ(sim.forceEvaluations(), 6 * steps + 1);
+  EXPECT_EQ(sim.forceEvaluationCount(), 6 * steps + 1);
 
   // odeint's dopri5 as a plain fixed stepper (it is FSAL too: do_step keeps the last
   // derivative for the next step).

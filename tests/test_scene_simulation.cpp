@@ -171,7 +171,7 @@ void expectFailureHandled(Simulation<S>& sim, const StepStatus& failure, const S
 
   // Further steps return the same failure without advancing (or evaluating anything).
   const Index steps = sim.stepCount();
-  const std::int64_t evaluations = sim.forceEvaluations();
+  const std::int64_t evaluations = sim.forceEvaluationCount();
   for (int k = 0; k < 3; ++k) {
     const StepStatus again = sim.step();
     EXPECT_EQ(again.code, failure.code);
@@ -181,14 +181,14 @@ void expectFailureHandled(Simulation<S>& sim, const StepStatus& failure, const S
   }
   EXPECT_EQ(sim.run(10).code, failure.code);
   EXPECT_EQ(sim.stepCount(), steps);
-  EXPECT_EQ(sim.forceEvaluations(), evaluations);
+  EXPECT_EQ(sim.forceEvaluationCount(), evaluations);
   EXPECT_EQ(stateHash(sim.state()), stateHash(before));
 
   // setTimeStep clears the failure and stepping resumes.
   sim.setTimeStep(sim.timeStep() / 100);
   EXPECT_TRUE(sim.status().ok());
   (void)sim.step();
-  EXPECT_GT(sim.forceEvaluations(), evaluations);
+  EXPECT_GT(sim.forceEvaluationCount(), evaluations);
 }
 
 TYPED_TEST(SimulationTest, ExplicitEulerPastItsLimitOverstretchesAndStops) {
@@ -330,7 +330,8 @@ TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {
     } else {
       EXPECT_EQ(last.forceEvaluations, integratorForceEvaluations(kind));
       // Verlet evaluates a0 once on its first step.
-      EXPECT_EQ(sim.forceEvaluations(), 25 * last.forceEvaluations + (kind == IntegratorKind::VelocityVerlet ? 1 : 0));
+      EXPECT_EQ(sim.forceEvaluationCount(),
+                25 * last.forceEvaluations + (kind == IntegratorKind::VelocityVerlet ? 1 : 0));
       EXPECT_EQ(total.substeps, 25);
     }
     EXPECT_EQ(total.linearIterations > 0, !integratorIsExplicit(kind));

@@ -392,7 +392,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // its own): what the memory estimate is for.
   const double peakMb = peakResidentMegabytes();
   const double stepsPerSecond = wall > 0 ? static_cast<double>(done) / wall : 0;
-  const double springEvals = static_cast<double>(sim.forceEvaluations()) * model.springCount();
+  const double springEvals = static_cast<double>(sim.forceEvaluationCount()) * model.springCount();
   const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
   const weft::RigidWorld* rigid = sim.rigidWorld();
   // With rigid bodies the hash covers them too (equal for any thread count, like the particles').
@@ -433,7 +433,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["wall_seconds"] = wall;
     j["steps_per_second"] = stepsPerSecond;
     j["spring_evals_per_second"] = springEvalsPerSecond;
-    j["force_evaluations"] = sim.forceEvaluations();
+    j["force_evaluations"] = sim.forceEvaluationCount();
     j["work_per_step"] = workJson(sim.totalWork(), done);
     j["work_total"] = workJson(sim.totalWork(), 1);
     j["effects"] = effects;
@@ -475,7 +475,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     }
     // Cloth against cloth: pairs of triangles (sharing no particle) that intersect at the end
     // (the exact check, in every scene), and with self-collision what its pass did over the run.
-    j["intersecting_pairs"] = sim.selfIntersections();
+    j["intersecting_pairs"] = sim.selfIntersectionCount();
     if (const weft::SelfCollisionOptions& self = sim.options().selfCollision; self.enabled) {
       const weft::SelfCollisionStats& t = sim.totalSelfCollision();
       j["self_contacts"] = t.contacts;
@@ -564,7 +564,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           << sim.totalCollision().edgeContacts << " edge contacts, " << report.tunnelled << " tunnelled\n";
     }
     if (model.triangleCount() > 1) {
-      out << "  cloth        " << sim.selfIntersections() << " pairs of triangles intersecting at the end";
+      out << "  cloth        " << sim.selfIntersectionCount() << " pairs of triangles intersecting at the end";
       if (sim.options().selfCollision.enabled) {
         const weft::SelfCollisionStats& t = sim.totalSelfCollision();
         out << "; self-collision: " << t.contacts << " contacts (" << t.vertexTriangle << " vertex-triangle), "

@@ -30,7 +30,7 @@ void TriangleBvh<S>::checkPositions(const char* what, const Vec3Array<S>& x) con
 template <class S>
 void TriangleBvh<S>::build(const Vec3Array<S>& x, const Triangles& triangles, const Executor& exec, double margin) {
   if (!std::isfinite(margin) || margin < 0) {
-    throw std::invalid_argument("TriangleBvh::build: margin must be finite and >= 0, got " + text(margin));
+    throw std::invalid_argument("TriangleBvh::build: margin must be finite and >= 0, got " + detail::number(margin));
   }
   const Index n = triangles.count();
   if (triangles.b.rows() != n || triangles.c.rows() != n) {

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "../core/text.hpp"
 #include "collide/bvh.hpp"
+#include "core/text.hpp"
 
 namespace weft::bvh_detail {
 
@@ -169,6 +169,5 @@ inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_
 }
 
 /// A number in an error message, all its digits.
-inline std::string text(double value) { return detail::number(value); }
 
 }  // namespace weft::bvh_detail

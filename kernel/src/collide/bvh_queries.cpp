@@ -25,7 +25,7 @@ std::optional<ClosestTriangle<S>> TriangleBvh<S>::closestTriangle(const Vec3Arra
                                                                   S radius) const {
   if (!(radius >= S(0))) {
     throw std::invalid_argument("TriangleBvh::closestTriangle: radius must be >= 0, got " +
-                                text(static_cast<double>(radius)));
+                                detail::number(static_cast<double>(radius)));
   }
   checkPositions("closestTriangle", x);
   if (empty()) return std::nullopt;

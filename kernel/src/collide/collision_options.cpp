@@ -7,6 +7,7 @@
 #include <string>
 
 #include "contact_math.hpp"
+#include "core/text.hpp"
 #include "weft/collide/obstacles.hpp"
 
 namespace weft {
@@ -17,10 +18,7 @@ using detail::v;
 void validateCollision(const CollisionOptions& c, const char* where) {
   const std::string w = std::string(where) + ".";
   const auto fail = [&](const std::string& field, double value, const char* rule) {
-    std::ostringstream msg;
-    msg.precision(17);
-    msg << w << field << " must be " << rule << ", got " << value;
-    throw std::invalid_argument(msg.str());
+    detail::rejectField(w + field, value, rule);  // core/text.hpp
   };
   const auto finite = [&](const std::string& field, const Vec3d& p) {
     if (!std::isfinite(p.x)) fail(field + ".x", p.x, "finite");

@@ -20,8 +20,6 @@ namespace {
 
 using V = Vec3<double>;
 
-using bvh_detail::text;
-
 /// Closest point of the closed triangle abc to p as barycentric weights (Ericson 5.1.5);
 /// slivers (sin^2 of the angle at a below eps) as their three edges.
 void closestBarycentric(const V& p, const V& a, const V& b, const V& c, double bary[3]) {

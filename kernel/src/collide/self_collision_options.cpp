@@ -13,7 +13,7 @@ namespace weft {
 
 namespace {
 using V = Vec3<double>;
-using bvh_detail::text;
+
 }  // namespace
 
 SelfCollisionStats& SelfCollisionStats::operator+=(const SelfCollisionStats& o) {
@@ -32,15 +32,15 @@ SelfCollisionStats& SelfCollisionStats::operator+=(const SelfCollisionStats& o) 
 void validateSelfCollision(const SelfCollisionOptions& o, const char* where) {
   const std::string w = where;
   if (!(std::isfinite(o.thickness) && o.thickness > 0))
-    throw std::invalid_argument(w + ".thickness must be finite and > 0 (m), got " + text(o.thickness));
+    throw std::invalid_argument(w + ".thickness must be finite and > 0 (m), got " + detail::number(o.thickness));
   if (!(std::isfinite(o.friction) && o.friction >= 0))
-    throw std::invalid_argument(w + ".friction must be finite and >= 0, got " + text(o.friction));
+    throw std::invalid_argument(w + ".friction must be finite and >= 0, got " + detail::number(o.friction));
   if (o.iterations < 1 || o.iterations > 64)
     throw std::invalid_argument(w + ".iterations must be in [1, 64], got " + std::to_string(o.iterations));
   for (size_t i = 0; i < o.particleThickness.size(); ++i)
     if (!(std::isfinite(o.particleThickness[i]) && o.particleThickness[i] > 0))
       throw std::invalid_argument(w + ".particleThickness[" + std::to_string(i) + "] must be finite and > 0 (m), got " +
-                                  text(o.particleThickness[i]));
+                                  detail::number(o.particleThickness[i]));
 }
 
 template <class S>
@@ -90,10 +90,11 @@ void validateSelfCollision(const SelfCollisionOptions& o, const Model<S>& model,
                                 ? thicknessField(thickest)
                                 : std::string(where) + ".particleThickness[" + std::to_string(thickest) + "]";
   throw std::invalid_argument(
-      field + " = " + text(worstThickness) + " m must be below the " +
+      field + " = " + detail::number(worstThickness) + " m must be below the " +
       (perParticle ? "altitude of its cloth's triangles" : "smallest altitude of the cloth's triangles") +
-      " in the initial state, " + text(worstAltitude) + " m (triangle " + std::to_string(which) + ", particles " +
-      std::to_string(tr.a[which]) + ", " + std::to_string(tr.b[which]) + ", " + std::to_string(tr.c[which]) +
+      " in the initial state, " + detail::number(worstAltitude) + " m (triangle " + std::to_string(which) +
+      ", particles " + std::to_string(tr.a[which]) + ", " + std::to_string(tr.b[which]) + ", " +
+      std::to_string(tr.c[which]) +
       "): a thicker layer puts neighbouring triangles in contact at rest; keep it below about half of that");
 }
 

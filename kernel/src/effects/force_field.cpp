@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
 #include "incidence.hpp"
 #include "repulsion.hpp"
 #include "weft/effects/spring_force.hpp"
@@ -441,15 +442,7 @@ Vec3d ForceField<S>::airVelocity(const Vec3d& x, double time) const {
   return wind_ ? wind_->airVelocity(x, time) : effects_.wind.velocity;
 }
 
-namespace {
-void requireField(bool ok, const std::string& field, double value, const char* rule) {
-  if (ok) return;
-  std::ostringstream msg;
-  msg.precision(17);
-  msg << field << " must be " << rule << ", got " << value;
-  throw std::invalid_argument(msg.str());
-}
-}  // namespace
+using detail::requireField;  // core/text.hpp: the kernel's one message form
 
 void validateEffects(const ParticleEffects& e, const char* where) {
   const std::string w = std::string(where) + ".";

@@ -61,7 +61,8 @@ class ImplicitEuler final : public Integrator<S> {
     for (Index i = 0; i < model.particleCount(); ++i) free_[i] = model.isPinned(i) ? S(0) : S(1);
     dv_.setZero();
     if (o.preconditioner == Preconditioner::Projective)
-      laplacian_ = std::make_unique<SpringLaplacianSolver<S>>(model, kProjectiveTheta);
+      laplacian_ = std::make_unique<SpringLaplacianSolver<S>>(model, kProjectiveTheta,
+                                                              "implicit Euler: the preconditioner's matrix");
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
   void reset() override { warm_ = false; }

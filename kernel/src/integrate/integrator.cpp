@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
 #include "row_blocks.hpp"
 
 namespace weft {
@@ -82,12 +83,7 @@ int integratorForceEvaluations(IntegratorKind kind) { return traits(kind).forceE
 double integratorStabilityLimit(IntegratorKind kind) { return traits(kind).stabilityLimit; }
 
 namespace {
-std::string str(double v) {
-  std::ostringstream o;
-  o.precision(17);
-  o << v;
-  return o.str();
-}
+std::string str(double v) { return detail::number(v); }  // core/text.hpp
 }  // namespace
 
 void validateIntegratorOptions(const IntegratorOptions& o) {

@@ -36,7 +36,9 @@
 // nothing. The triangular solves are weft's own, over the factor's columns with the three
 // coordinates interleaved, so that the factor is read once per solve instead of three times
 // (2.3x faster than Eigen's solve with three right-hand sides at 128^2). They run on one
-// thread, in one order: the result is the same for any thread count.
+// thread, in one order: the result is the same for any thread count. The factor cache and
+// the solves are SpringLaplacianSolver's (spring_laplacian_solver.hpp, with theta = 1), which
+// implicit Euler's projective preconditioner shares.
 //
 // Convergence. Each iteration (a local step, a gather, a solve) is a fixed-point step
 // towards backward Euler (without damping it lowers the backward-Euler energy: Liu et
@@ -55,20 +57,12 @@
 #include <vector>
 
 #include "row_blocks.hpp"
+#include "spring_laplacian_solver.hpp"
 #include "weft/effects/spring_force.hpp"
 
 namespace weft::detail {
 
 namespace {
-
-/// One factorisation of the global matrix for one h, with the factor in the layout the
-/// interleaved solves read.
-struct GlobalFactor {
-  double h = 0;  // 0: empty slot
-  std::uint64_t lastUse = 0;
-  Eigen::SparseMatrix<double> lower;  // strictly lower triangle of L (unit diagonal), columns
-  Eigen::VectorXd inverseD;           // 1 / D
-};
 
 template <class S>
 class Projective final : public Integrator<S> {
@@ -83,19 +77,11 @@ class Projective final : public Integrator<S> {
         springTerm_(model.springCount(), 3),
         constant_(model.particleCount(), 3),
         displacement_(model.particleCount(), 3),
-        permuted_(static_cast<size_t>(3 * model.particleCount()), 0.0),
         blockMax_(static_cast<size_t>(Executor::blockCount(model.particleCount(), kGrain)), 0.0),
-        blockMove_(blockMax_.size(), 0.0) {
+        blockMove_(blockMax_.size(), 0.0),
+        global_(model, 1.0, "projective dynamics: the global matrix") {
     for (Index i = 0; i < n_; ++i) free_[i] = model.isPinned(i) ? S(0) : S(1);
     incidence_ = model.springCount() > 0 ? &model.springIncidence() : nullptr;
-    // The ordering depends on the pattern only: computed once, here.
-    Eigen::SparseMatrix<double> pattern = assemble(1.0, 0.0);
-    Eigen::AMDOrdering<int> ordering;
-    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
-    ordering(pattern.selfadjointView<Eigen::Lower>(), inverse);  // AMD returns P^-1
-    permutation_ = inverse.inverse();
-    position_.resize(static_cast<size_t>(n_));
-    for (Index i = 0; i < n_; ++i) position_[static_cast<size_t>(i)] = permutation_.indices()[i];
   }
   IntegratorKind kind() const override { return IntegratorKind::Projective; }
 
@@ -103,7 +89,9 @@ class Projective final : public Integrator<S> {
                    Vec3Array<S>& v1, const Executor& exec) override {
     StepWork work;
     work.substeps = 1;
-    const GlobalFactor& factor = factorFor(static_cast<double>(h), forces, work);
+    // The global matrix's factor for this h and drag: cached, or factorised now (allocates).
+    if (global_.prepare(static_cast<double>(h), forces.effects().drag)) ++work.factorizations;
+    double* const permuted = global_.buffer();  // (3 n) right-hand side / solution, factor order
     const ScalarArray<S>& mass = model_->mass();
     const ScalarArray<S>& w = model_->inverseMass();
     const S drag = static_cast<S>(forces.effects().drag);
@@ -155,7 +143,7 @@ class Projective final : public Integrator<S> {
       // ordering with the coordinates interleaved.
       exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
         for (Index i = b; i < e; ++i) {
-          double* out = &permuted_[3 * static_cast<size_t>(position_[static_cast<size_t>(i)])];
+          double* out = permuted + 3 * global_.position(i);
           if (free_[i] == S(0)) {
             for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c));
             continue;
@@ -165,14 +153,14 @@ class Projective final : public Integrator<S> {
           for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c)) + static_cast<double>(f[c]);
         }
       });
-      solve(factor);
+      global_.solveBuffer();
       const bool last = k + 1 == iterations_;
       exec.parallelForBlocks(n_, kGrain, [&](Index block, Index b, Index e) {
         if (last)
           finish(x0, v0, h, x1, v1, block, b, e);
         else
           for (Index i = b; i < e; ++i) {
-            const double* in = &permuted_[3 * static_cast<size_t>(position_[static_cast<size_t>(i)])];
+            const double* in = permuted + 3 * global_.position(i);
             for (int c = 0; c < 3; ++c) displacement_(i, c) = static_cast<S>(in[c]);
           }
       });
@@ -211,7 +199,7 @@ class Projective final : public Integrator<S> {
     const double invH = 1.0 / static_cast<double>(h);
     double move = 0, moved = 0;
     for (Index i = b; i < e; ++i) {
-      const double* in = &permuted_[3 * static_cast<size_t>(position_[static_cast<size_t>(i)])];
+      const double* in = global_.buffer() + 3 * global_.position(i);
       const bool isFree = free_[i] != S(0);
       for (int c = 0; c < 3; ++c) {
         move = std::max(move, std::abs(in[c] - static_cast<double>(displacement_(i, c))));
@@ -265,134 +253,18 @@ class Projective final : public Integrator<S> {
     });
   }
 
-  /// The global matrix (lower triangle) for step h and drag c.
-  Eigen::SparseMatrix<double> assemble(double h, double drag) const {
-    const Springs<S>& sp = model_->springs();
-    std::vector<Eigen::Triplet<double, int>> entries;
-    entries.reserve(static_cast<size_t>(n_ + 3 * sp.count()));
-    for (Index i = 0; i < n_; ++i) {
-      const bool isFree = free_[i] != S(0);
-      entries.emplace_back(static_cast<int>(i), static_cast<int>(i),
-                           isFree ? static_cast<double>(model_->mass()[i]) + h * drag : 1.0);
-    }
-    for (Index s = 0; s < sp.count(); ++s) {
-      const Index a = sp.a[s], b = sp.b[s];
-      const double k = h * h * static_cast<double>(sp.stiffness[s]) + h * static_cast<double>(sp.damping[s]);
-      const bool aFree = free_[a] != S(0), bFree = free_[b] != S(0);
-      if (aFree) entries.emplace_back(static_cast<int>(a), static_cast<int>(a), k);
-      if (bFree) entries.emplace_back(static_cast<int>(b), static_cast<int>(b), k);
-      if (aFree && bFree && a != b)
-        entries.emplace_back(static_cast<int>(std::max(a, b)), static_cast<int>(std::min(a, b)), -k);
-    }
-    Eigen::SparseMatrix<double> A(n_, n_);
-    A.setFromTriplets(entries.begin(), entries.end());
-    return A;
-  }
-
-  /// The factor for step h, from the cache or computed now (allocates). The cache's slots
-  /// never move (an Eigen matrix moved by std::swap may be copied): the least recently
-  /// used slot is refilled.
-  const GlobalFactor& factorFor(double h, const ForceField<S>& forces, StepWork& work) {
-    const double drag = forces.effects().drag;
-    if (drag != cachedDrag_)
-      for (GlobalFactor& f : cache_) f.h = 0;  // another drag: every factor is stale
-    cachedDrag_ = drag;
-    ++useClock_;
-    for (GlobalFactor& f : cache_)
-      if (f.h == h) {
-        f.lastUse = useClock_;
-        return f;
-      }
-    GlobalFactor& f = cache_[0].lastUse <= cache_[1].lastUse ? cache_[0] : cache_[1];
-    // Factorise P A P^T with the ordering found at construction (NaturalOrdering: the
-    // permutation is applied here, so the factor's columns are in the solve's order).
-    const Eigen::SparseMatrix<double> A = assemble(h, drag);
-    Eigen::SparseMatrix<double> permuted(n_, n_);
-    permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation_);
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
-      throw std::runtime_error(
-          "projective dynamics: the global matrix is not positive definite (a particle of zero "
-          "mass that is not pinned?)");
-    f.h = h;
-    f.lastUse = useClock_;
-    f.lower = ldlt.matrixL().nestedExpression();
-    f.lower.makeCompressed();
-    f.inverseD = ldlt.vectorD().cwiseInverse();
-    ++work.factorizations;
-    return f;
-  }
-
-  /// permuted_ = (L D L^T)^-1 permuted_, three interleaved right-hand sides.
-  void solve(const GlobalFactor& f) {
-    const Index n = n_;
-    const int* outer = f.lower.outerIndexPtr();
-    const int* inner = f.lower.innerIndexPtr();
-    const double* value = f.lower.valuePtr();
-    double* y = permuted_.data();
-    for (Index j = 0; j < n; ++j) {  // L y = b, column by column
-      const double y0 = y[3 * j], y1 = y[3 * j + 1], y2 = y[3 * j + 2];
-      for (int p = outer[j]; p < outer[j + 1]; ++p) {
-        double* t = y + 3 * static_cast<Index>(inner[p]);
-        const double l = value[p];
-        t[0] -= l * y0;
-        t[1] -= l * y1;
-        t[2] -= l * y2;
-      }
-    }
-    for (Index j = 0; j < n; ++j) {  // D z = y
-      const double d = f.inverseD[j];
-      y[3 * j] *= d;
-      y[3 * j + 1] *= d;
-      y[3 * j + 2] *= d;
-    }
-    for (Index j = n - 1; j >= 0; --j) {  // L^T x = z
-      // Two partial sums per coordinate (even and odd entries): a single one would chain
-      // every multiply-add on the previous (measured 1.4x slower at 128^2).
-      double s0 = y[3 * j], s1 = y[3 * j + 1], s2 = y[3 * j + 2], u0 = 0, u1 = 0, u2 = 0;
-      int p = outer[j];
-      const int end = outer[j + 1];
-      for (; p + 1 < end; p += 2) {
-        const double* t = y + 3 * static_cast<Index>(inner[p]);
-        const double* r = y + 3 * static_cast<Index>(inner[p + 1]);
-        const double l = value[p], k = value[p + 1];
-        s0 -= l * t[0];
-        s1 -= l * t[1];
-        s2 -= l * t[2];
-        u0 -= k * r[0];
-        u1 -= k * r[1];
-        u2 -= k * r[2];
-      }
-      if (p < end) {
-        const double* t = y + 3 * static_cast<Index>(inner[p]);
-        const double l = value[p];
-        s0 -= l * t[0];
-        s1 -= l * t[1];
-        s2 -= l * t[2];
-      }
-      y[3 * j] = s0 + u0;
-      y[3 * j + 1] = s1 + u1;
-      y[3 * j + 2] = s2 + u2;
-    }
-  }
-
   const Model<S>* model_;
   int iterations_;
   Index n_;
   const Incidence* incidence_ = nullptr;
-  ScalarArray<S> free_;           // (n) 1 for free particles, 0 for pinned
-  Vec3Array<S> externalAccel_;    // (n x 3) every acceleration at the start of the step, m/s^2
-  Vec3Array<S> springForce_;      // (m x 3) spring forces at the start of the step, N
-  Vec3Array<S> springTerm_;       // (m x 3) the local step's per-spring right-hand side, kg m
-  Vec3Array<S> constant_;         // (n x 3) the right-hand side's constant part, kg m
-  Vec3Array<S> displacement_;     // (n x 3) the iterate: x1 - x0, m
-  std::vector<double> permuted_;  // (3 n) right-hand side / solution in the factor's order
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation_;  // particle -> factor order
-  std::vector<Index> position_;                                                // permutation_ as a plain list
+  ScalarArray<S> free_;         // (n) 1 for free particles, 0 for pinned
+  Vec3Array<S> externalAccel_;  // (n x 3) every acceleration at the start of the step, m/s^2
+  Vec3Array<S> springForce_;    // (m x 3) spring forces at the start of the step, N
+  Vec3Array<S> springTerm_;     // (m x 3) the local step's per-spring right-hand side, kg m
+  Vec3Array<S> constant_;       // (n x 3) the right-hand side's constant part, kg m
+  Vec3Array<S> displacement_;   // (n x 3) the iterate: x1 - x0, m
   std::vector<double> blockMax_, blockMove_;
-  std::array<GlobalFactor, 2> cache_;  // h = 0: empty
-  std::uint64_t useClock_ = 0;
-  double cachedDrag_ = -1;
+  SpringLaplacianSolver<S> global_;  // the global matrix, factorised per (h, drag), and its solves
 };
 
 }  // namespace

@@ -3,13 +3,15 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 namespace weft::detail {
 
 template <class S>
-SpringLaplacianSolver<S>::SpringLaplacianSolver(const Model<S>& model, double theta)
+SpringLaplacianSolver<S>::SpringLaplacianSolver(const Model<S>& model, double theta, const char* what)
     : model_(&model),
       theta_(theta),
+      what_(what),
       n_(model.particleCount()),
       free_(static_cast<size_t>(model.particleCount())),
       position_(static_cast<size_t>(model.particleCount())),
@@ -68,9 +70,8 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
   permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation);
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
-    throw std::runtime_error(
-        "implicit Euler: the preconditioner's matrix is not positive definite (a particle of zero mass that is "
-        "not pinned?)");
+    throw std::runtime_error(std::string(what_) +
+                             " is not positive definite (a particle of zero mass that is not pinned?)");
   f.h = h;
   f.drag = drag;
   f.lastUse = useClock_;

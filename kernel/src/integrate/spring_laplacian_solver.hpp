@@ -3,8 +3,8 @@
 //     P = M + h c I + sum_s (theta h^2 ks + h kd) L_s      (rows of pinned particles: identity)
 //
 // (L_s a spring's graph Laplacian, the same matrix for x, y and z), used by implicit Euler as
-// its CG preconditioner (IntegratorOptions::preconditioner = Projective). theta = 1 is
-// projective dynamics' global matrix; smaller theta trades the stiffness P assigns across
+// its CG preconditioner (IntegratorOptions::preconditioner = Projective), and with theta = 1
+// by projective dynamics as its global matrix (projective.cpp); smaller theta trades the stiffness P assigns across
 // slack springs (where the Hessian has none) against what it assigns along them.
 //
 // P is factorised (Eigen's SimplicialLDLT with an approximate-minimum-degree ordering
@@ -28,8 +28,10 @@ namespace weft::detail {
 template <class S>
 class SpringLaplacianSolver {
  public:
-  /// Finds the fill-reducing ordering (allocates). `model` must outlive the solver.
-  SpringLaplacianSolver(const Model<S>& model, double theta);
+  /// Finds the fill-reducing ordering (allocates). `model` must outlive the solver. `what`
+  /// names the matrix in the error a failed factorisation throws ("implicit Euler: the
+  /// preconditioner's matrix").
+  SpringLaplacianSolver(const Model<S>& model, double theta, const char* what);
 
   /// Makes the factor for step h and drag c current: from the cache, or factorised now
   /// (allocates; returns true then).
@@ -38,6 +40,14 @@ class SpringLaplacianSolver {
   /// z = F P^-1 F r (F zeroes pinned particles' rows), and partials[k] = r . z over the
   /// particles of block k (blocks of `block` particles, accumulated in double).
   void apply(const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials, Index block, const Executor& exec);
+
+  /// The solve on the solver's own buffer, for callers that gather and scatter themselves
+  /// (projective dynamics): (3 n) doubles, particle i's x, y, z at 3 position(i).
+  double* buffer() { return work_.data(); }
+  const double* buffer() const { return work_.data(); }
+  Index position(Index i) const { return position_[static_cast<size_t>(i)]; }
+  /// buffer() = (L D L^T)^-1 buffer() with the factor prepare() made current.
+  void solveBuffer() { solve(*current_); }
 
  private:
   struct Factor {
@@ -52,6 +62,7 @@ class SpringLaplacianSolver {
 
   const Model<S>* model_;
   double theta_;
+  const char* what_;
   Index n_;
   std::vector<unsigned char> free_;  // 1 for free particles
   std::vector<int> position_;        // particle -> row in the factor's order

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "../core/text.hpp"
+#include "core/text.hpp"
 
 namespace weft {
 
@@ -20,7 +20,7 @@ constexpr const char* kWhere = "addClothMesh";
 using detail::number;
 
 [[noreturn]] void reject(const std::string& field, double value, const std::string& rule) {
-  throw std::invalid_argument(std::string(kWhere) + ": " + field + " must be " + rule + ", got " + number(value));
+  detail::rejectField(std::string(kWhere) + ": " + field, value, rule);
 }
 
 void checkMaterial(const char* name, const SpringMaterial& m) {

@@ -8,14 +8,14 @@
 #include <type_traits>
 #include <vector>
 
-#include "../core/text.hpp"
+#include "core/text.hpp"
 
 namespace weft {
 
 namespace {
 
 [[noreturn]] void reject(const std::string& where, const std::string& field, double value, const std::string& rule) {
-  throw std::invalid_argument(where + ": " + field + " must be " + rule + ", got " + detail::number(value));
+  detail::rejectField(where + ": " + field, value, rule);
 }
 
 void requireFinite(const std::string& where, const std::string& field, double value) {

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "../core/text.hpp"
+#include "core/text.hpp"
 
 namespace weft {
 

@@ -22,14 +22,14 @@
 #include <utility>
 #include <vector>
 
+#include "core/text.hpp"
 #include "hull_internal.hpp"
-#include "rigid_text.hpp"
 
 namespace weft {
 
 using Eigen::Vector3d;
 
-using rigid_detail::formatNumber;
+using detail::number;
 
 /// Fills edges (see the conventions above), centroid and boundingRadius from vertices,
 /// faces and faceVertices. Throws std::logic_error when a directed edge appears twice or an
@@ -88,7 +88,7 @@ ConvexHull makeBoxHull(const Vector3d& halfExtents) {
     const double h = halfExtents[k];
     if (!std::isfinite(h) || !(h > 0))
       throw std::invalid_argument(std::string("makeBoxHull: halfExtents.") + kAxis[k] +
-                                  " must be finite and > 0, got " + formatNumber(h));
+                                  " must be finite and > 0, got " + number(h));
   }
   ConvexHull hull;
   // Vertex i has x = +hx when bit 0 is set, y = +hy for bit 1, z = +hz for bit 2.

@@ -17,7 +17,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "rigid_text.hpp"
+#include "core/text.hpp"
 
 namespace weft {
 
@@ -26,12 +26,11 @@ using Eigen::Vector3d;
 
 namespace {
 
-using rigid_detail::formatNumber;
+using detail::number;
 
 void requirePositive(const char* function, const char* field, double value) {
   if (!std::isfinite(value) || !(value > 0))
-    throw std::invalid_argument(std::string(function) + ": " + field + " must be finite and > 0, got " +
-                                formatNumber(value));
+    throw std::invalid_argument(std::string(function) + ": " + field + " must be finite and > 0, got " + number(value));
 }
 
 /// Running sums of the ten integrals (times 6, 24, 24, 24, 60, 60, 60, 120, 120, 120).
@@ -78,8 +77,8 @@ struct VolumeIntegrals {
   MassProperties finish(const char* function, const Vector3d& reference, double density) const {
     const double volume = sum[0] / 6;
     if (!(volume > 0))
-      throw std::invalid_argument(std::string(function) + ": mesh encloses no positive volume (got " +
-                                  formatNumber(volume) + " m^3): open or inside out?");
+      throw std::invalid_argument(std::string(function) + ": mesh encloses no positive volume (got " + number(volume) +
+                                  " m^3): open or inside out?");
     const Vector3d first(sum[1] / 24, sum[2] / 24, sum[3] / 24);   // integrals of x, y, z
     const Vector3d square(sum[4] / 60, sum[5] / 60, sum[6] / 60);  // of x^2, y^2, z^2
     const double xy = sum[7] / 120, yz = sum[8] / 120, zx = sum[9] / 120;
@@ -115,8 +114,8 @@ MassProperties polyhedronMassProperties(std::span<const Vector3d> vertices,
     const Vector3d& v = vertices[static_cast<std::size_t>(i)];
     if (!v.allFinite())
       throw std::invalid_argument(std::string(kFunction) + ": vertex " + std::to_string(i) +
-                                  " has a non-finite coordinate (" + formatNumber(v.x()) + ", " + formatNumber(v.y()) +
-                                  ", " + formatNumber(v.z()) + ")");
+                                  " has a non-finite coordinate (" + number(v.x()) + ", " + number(v.y()) + ", " +
+                                  number(v.z()) + ")");
     reference += v;
   }
   if (vertexCount > 0) reference /= vertexCount;
@@ -177,7 +176,7 @@ MassProperties capsuleMassProperties(double radius, double halfHeight, double de
   requirePositive(kFunction, "radius", radius);
   if (!std::isfinite(halfHeight) || !(halfHeight >= 0))
     throw std::invalid_argument(std::string(kFunction) + ": halfHeight must be finite and >= 0, got " +
-                                formatNumber(halfHeight));
+                                number(halfHeight));
   requirePositive(kFunction, "density", density);
   const double r = radius, h = halfHeight, r2 = r * r;
   // Cylinder of length 2h: axial m r^2 / 2, transverse m (3 r^2 + (2h)^2) / 12.

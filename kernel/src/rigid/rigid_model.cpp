@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include "rigid_text.hpp"
+#include "core/text.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
 namespace weft {
@@ -19,12 +19,12 @@ using Mat3 = Eigen::Matrix3d;
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
-std::string text(double v) { return rigid_detail::formatNumber(v); }
+std::string text(double v) { return detail::number(v); }
+std::string text(const Vec3& v) { return detail::number3(v); }
 
-std::string text(const Vec3& v) { return rigid_detail::formatVector(v); }
-
+// The rigid options' checks, in the kernel's one message form (core/text.hpp).
 void require(bool ok, const std::string& field, const std::string& rule, const std::string& got) {
-  if (!ok) throw std::invalid_argument(field + " must be " + rule + ", got " + got);
+  if (!ok) detail::rejectField(field, got, rule);
 }
 
 /// Inertia of a piece (about its own centre) moved to a point at offset d (parallel axes).

@@ -140,7 +140,7 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
 }
 
 template <class S>
-std::int64_t Simulation<S>::selfIntersections() const {
+std::int64_t Simulation<S>::selfIntersectionCount() const {
   return countSelfIntersections(*model_, state_.x, *executor_);
 }
 

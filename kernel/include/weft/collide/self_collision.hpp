@@ -156,7 +156,7 @@ extern template std::int64_t countSelfIntersections(const Model<double>&, const 
 
 /// The self-collision pass itself (SelfCollider) and its continuous primitive queries are
 /// internal to weft: kernel/src/collide/self_collider.hpp. A Simulation reports what it does
-/// (Simulation::lastSelfCollision, totalSelfCollision, selfIntersections).
+/// (Simulation::lastSelfCollision, totalSelfCollision, selfIntersectionCount).
 template <class S>
 class SelfCollider;
 

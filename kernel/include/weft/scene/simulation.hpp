@@ -126,7 +126,8 @@ class Simulation {
   /// summed, residual and error estimate the largest).
   const StepWork& lastWork() const { return lastWork_; }
   const StepWork& totalWork() const { return totalWork_; }
-  std::int64_t forceEvaluations() const { return totalWork_.forceEvaluations; }
+  std::int64_t forceEvaluationCount() const { return totalWork_.forceEvaluations; }
+  [[deprecated("use forceEvaluationCount()")]] std::int64_t forceEvaluations() const { return forceEvaluationCount(); }
   /// Collision findings of the last step and summed over all steps (zeros without obstacles).
   const CollisionStats& lastCollision() const { return lastCollision_; }
   const CollisionStats& totalCollision() const { return totalCollision_; }
@@ -142,7 +143,10 @@ class Simulation {
   /// Pairs of triangles sharing no particle that intersect in the current state: the exact
   /// check of weft/collide/self_collision.hpp, for any model (self-collision on or off).
   /// Builds a BVH: for reports and tests, not for every step of a fast loop.
-  std::int64_t selfIntersections() const;
+  std::int64_t selfIntersectionCount() const;
+  [[deprecated("use selfIntersectionCount()")]] std::int64_t selfIntersections() const {
+    return selfIntersectionCount();
+  }
   /// The self-collision pass (null when SimulationOptions::selfCollision is off).
   const SelfCollider<S>* selfCollider() const { return self_.get(); }
   /// The contact solver (null without obstacles).
