@@ -93,6 +93,7 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Leaks inside assimp itself (not weft's to free) are suppressed: see tests/lsan.supp.
 export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
 failed=0
+summary=()
 
 # fuzz NAME WHAT FINDINGS CORPUS SEEDS [libFuzzer options...]
 # -timeout: one input taking 10 s is a finding (they take milliseconds); -rss_limit_mb: so
@@ -107,9 +108,11 @@ fuzz() {
     echo "fuzz.sh: the fuzzer found a problem; the input is in $findings/:" >&2
     ls -l "$findings" >&2
     failed=1
+    summary+=("$what ($name): FINDING, the input is in $findings/")
     return
   fi
   echo "fuzz.sh: no finding in $seconds s"
+  summary+=("$what ($name): no finding in $seconds s")
 }
 
 fuzz fuzz_scene "the scene reader" "$dir/findings" "$dir/corpus" "$dir/seeds" -dict=tests/fuzz/scene.dict
@@ -117,4 +120,7 @@ fuzz fuzz_mesh "mesh import" "$dir/mesh/findings" "$dir/mesh/corpus" "$dir/mesh/
 fuzz fuzz_frame_cache "the frame cache reader" "$dir/frame_cache/findings" "$dir/frame_cache/corpus" \
   "$dir/frame_cache/seeds"
 fuzz fuzz_checkpoint "checkpoints" "$dir/checkpoint/findings" "$dir/checkpoint/corpus" "$dir/checkpoint/seeds"
+# One line per target at the end, so that the tail of a long log names any finding.
+echo "fuzz.sh: summary"
+for line in "${summary[@]}"; do echo "  $line"; done
 exit "$failed"
