@@ -132,6 +132,29 @@ TEST(AllocationCounter, SeesOperatorNewAndMalloc) {
   }
 }
 
+/// A new step size factorises the prefactored matrix once (that allocates); the two most
+/// recent sizes are kept, so going back and forth between two of them (the collision
+/// pipeline's halved chunks) allocates nothing. For projective dynamics and implicit Euler's
+/// projective preconditioner.
+template <class S>
+void expectTwoCachedStepSizesAllocateNothing(Simulation<S>& sim) {
+  const double dt = sim.timeStep();
+  sim.setTimeStep(dt / 2);
+  ASSERT_TRUE(sim.step().ok());
+  EXPECT_EQ(sim.lastWork().factorizations, 1);
+  StepStatus status;
+  const Counts alternating = countDuring([&] {
+    for (int k = 0; k < 4; ++k) {
+      sim.setTimeStep(k % 2 == 0 ? dt : dt / 2);
+      status = sim.step();
+    }
+  });
+  ASSERT_TRUE(status.ok()) << status.message();
+  EXPECT_EQ(sim.totalWork().factorizations, 2);
+  EXPECT_EQ(alternating.news, 0) << "operator new calls alternating two cached step sizes";
+  EXPECT_EQ(alternating.mallocs, 0) << "malloc-family calls alternating two cached step sizes";
+}
+
 template <class C>
 class StepAllocation : public ::testing::Test {};
 TYPED_TEST_SUITE(StepAllocation, AllConfigs, ConfigNames);
@@ -164,23 +187,8 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
       EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 50 steps";
 
       if (kind == IntegratorKind::Projective) {
-        // Projective dynamics does not fail at a large step. A new step size factorises its
-        // matrix once (that allocates); the two most recent are kept, so going back and
-        // forth between two sizes (the collision pipeline's halved chunks) allocates nothing.
-        const double dt = sim.timeStep();
-        sim.setTimeStep(dt / 2);
-        ASSERT_TRUE(sim.step().ok());
-        EXPECT_EQ(sim.lastWork().factorizations, 1);
-        const Counts alternating = countDuring([&] {
-          for (int k = 0; k < 4; ++k) {
-            sim.setTimeStep(k % 2 == 0 ? dt : dt / 2);
-            status = sim.step();
-          }
-        });
-        ASSERT_TRUE(status.ok()) << status.message();
-        EXPECT_EQ(sim.totalWork().factorizations, 2);
-        EXPECT_EQ(alternating.news, 0) << "operator new calls alternating two cached step sizes";
-        EXPECT_EQ(alternating.mallocs, 0) << "malloc-family calls alternating two cached step sizes";
+        // Projective dynamics does not fail at a large step.
+        expectTwoCachedStepSizesAllocateNothing(sim);
         continue;
       }
       // A failing step (the stability check stops it) and the refused steps after it.
@@ -216,21 +224,7 @@ TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
       EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
       EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
       if (p != Preconditioner::Projective) continue;
-      // A new step size factorises once; alternating two cached ones allocates nothing.
-      const double dt = sim.timeStep();
-      sim.setTimeStep(dt / 2);
-      ASSERT_TRUE(sim.step().ok());
-      EXPECT_EQ(sim.lastWork().factorizations, 1);
-      const Counts alternating = countDuring([&] {
-        for (int k = 0; k < 4; ++k) {
-          sim.setTimeStep(k % 2 == 0 ? dt : dt / 2);
-          status = sim.step();
-        }
-      });
-      ASSERT_TRUE(status.ok()) << status.message();
-      EXPECT_EQ(sim.totalWork().factorizations, 2);
-      EXPECT_EQ(alternating.news, 0);
-      EXPECT_EQ(alternating.mallocs, 0);
+      expectTwoCachedStepSizesAllocateNothing(sim);
     }
 }
 
