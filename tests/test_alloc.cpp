@@ -216,13 +216,7 @@ TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
       options.integration.preconditioner = p;
       Simulation<double> sim(ModelAndState<double>{flag.model, flag.state}, options);
       ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers, the projective factorisation
-      StepStatus status;
-      const Counts steps = countDuring([&] {
-        for (int k = 0; k < 20; ++k) status = sim.step();
-      });
-      ASSERT_TRUE(status.ok()) << status.message();
-      EXPECT_EQ(steps.news, 0) << "operator new calls during 20 steps";
-      EXPECT_EQ(steps.mallocs, 0) << "malloc-family calls during 20 steps";
+      expectTwentyStepsDoNotAllocate(sim);
       if (p != Preconditioner::Projective) continue;
       expectTwoCachedStepSizesAllocateNothing(sim);
     }
