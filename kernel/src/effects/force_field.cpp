@@ -12,6 +12,7 @@
 #include "core/text.hpp"
 #include "incidence.hpp"
 #include "repulsion.hpp"
+#include "stencil_gather.hpp"
 #include "weft/effects/spring_force.hpp"
 #include "wind.hpp"
 
@@ -88,17 +89,6 @@ template <class S>
     ax[i] = wi * fx[i] + (free ? gx : S(0));
     ay[i] = wi * fy[i] + (free ? gy : S(0));
     az[i] = wi * fz[i] + (free ? gz : S(0));
-  }
-}
-
-// t[i] += f[i] - f[i - offset] over [0, count), the stencil gather of one family.
-template <class S>
-[[gnu::noinline]] void addFamily(Index count, Index offset, const S* __restrict fx, const S* __restrict fy,
-                                 const S* __restrict fz, S* __restrict tx, S* __restrict ty, S* __restrict tz) {
-  for (Index i = 0; i < count; ++i) {
-    tx[i] += fx[i] - fx[i - offset];
-    ty[i] += fy[i] - fy[i - offset];
-    tz[i] += fz[i] - fz[i - offset];
   }
 }
 
@@ -364,8 +354,9 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
         std::fill_n(ty, len, S(0));
         std::fill_n(tz, len, S(0));
         for (Index k = 0; k < familyCount; ++k)
-          addFamily(len, familyOffset_[k], window + (k * 3 + 0) * windowSize_ + p,
-                    window + (k * 3 + 1) * windowSize_ + p, window + (k * 3 + 2) * windowSize_ + p, tx, ty, tz);
+          detail::addStencilFamily(len, familyOffset_[k], window + (k * 3 + 0) * windowSize_ + p,
+                                   window + (k * 3 + 1) * windowSize_ + p, window + (k * 3 + 2) * windowSize_ + p, tx,
+                                   ty, tz);
         finishAccelerations(len, w + j0, tx, ty, tz, gx_, gy_, gz_, ax, ay, az);
       }
       if (anyEffect_) applyEffects(j0, len, x, v, ax, ay, az);

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "incidence.hpp"
+#include "stencil_gather.hpp"
 
 namespace weft {
 
@@ -79,17 +80,6 @@ template <class S, bool kDamping>
     gx[t] = alpha[t] * ux + along * dx[t];
     gy[t] = alpha[t] * uy + along * dy[t];
     gz[t] = alpha[t] * uz + along * dz[t];
-  }
-}
-
-// y[t] += g[t] - g[t - offset] over [0, count): one family's share of the stencil gather.
-template <class S>
-[[gnu::noinline]] void addStencilFamily(Index count, Index offset, const S* __restrict gx, const S* __restrict gy,
-                                        const S* __restrict gz, S* __restrict yx, S* __restrict yy, S* __restrict yz) {
-  for (Index t = 0; t < count; ++t) {
-    yx[t] += gx[t] - gx[t - offset];
-    yy[t] += gy[t] - gy[t - offset];
-    yz[t] += gz[t] - gz[t - offset];
   }
 }
 
@@ -204,8 +194,8 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
     std::fill_n(yy, m, S(0));
     std::fill_n(yz, m, S(0));
     for (Index k = 0; k < families; ++k)
-      addStencilFamily(m, gridOffset_[static_cast<size_t>(k)], slot(k, 0) + b, slot(k, 1) + b, slot(k, 2) + b, yx, yy,
-                       yz);
+      detail::addStencilFamily(m, gridOffset_[static_cast<size_t>(k)], slot(k, 0) + b, slot(k, 1) + b, slot(k, 2) + b,
+                               yx, yy, yz);
     if constexpr (kSystem)
       addMassTerm(m, model_->mass().data() + b, dragTerm_, col(p, 0) + b, col(p, 1) + b, col(p, 2) + b, yx, yy, yz);
     sink(b, m, yx, yy, yz);
