@@ -699,6 +699,37 @@ TEST(MeshFile, FuzzedCorruptPlyIsReportedWithItsName) {
               HasSubstr("mesh file 'words.ply': "));
 }
 
+// Found by fuzz_mesh: PLY files whose faces index vertices the file does not have (a header
+// declaring 2 vertices, faces using 4; a vertex line cut short by NUL bytes). assimp 5.2's
+// reader reads the extra vertex lines as faces and passes them on with primitive-type flags
+// that do not match them, and its triangulation then aborted the program on an assertion.
+// weft checks the raw scene before any post-processing and names the face.
+TEST(MeshFile, FacesIndexingMissingVerticesAreRefusedBeforeAssimpPostProcessing) {
+  EXPECT_THAT(thrownMessage<std::runtime_error>([] {
+                loadMeshFromMemory(fuzzRegression("ply-fewer-vertices-than-indexed-aborts-assimp.ply"), "fuzzed.ply");
+              }),
+              AllOf(HasSubstr("mesh file 'fuzzed.ply': mesh 0 face "), HasSubstr(" has no corners")));
+  // A face indexing past the vertices the file has: named with its corner and index.
+  const std::string beyond =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 7\n";
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory(beyond, "beyond.ply"); }),
+              HasSubstr("mesh file 'beyond.ply': mesh 0 face 0 corner 2: vertex index must be < 3, got 7"));
+  const std::string cut = fuzzRegression("ply-short-vertex-line-aborts-assimp.ply");
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMeshFromMemory(cut, "cut.ply"); }),
+              HasSubstr("mesh file 'cut.ply': "));
+  const std::string path = tempFile("cut.ply", cut);
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { loadMesh(path); }), HasSubstr("mesh file '" + path + "': "));
+  // The same file with its header's counts right still loads, its quad split in two.
+  const std::string quad =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+      "4 0 1 2 3\n";
+  const TriangleMesh mesh = loadMeshFromMemory(quad, "quad.ply");
+  EXPECT_EQ(mesh.vertices.size(), 4u);
+  EXPECT_EQ(mesh.triangles.size(), 2u);
+}
+
 TEST(MeshFile, UnreadableFileIsReported) {
   if (geteuid() == 0) GTEST_SKIP() << "running as root: file permissions do not stop reading";
   const std::string path = tempFile("unreadable.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");

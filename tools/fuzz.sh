@@ -94,6 +94,7 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
 failed=0
 summary=()
+reports=()
 
 # fuzz NAME WHAT FINDINGS CORPUS SEEDS [libFuzzer options...]
 # -timeout: one input taking 10 s is a finding (they take milliseconds); -rss_limit_mb: so
@@ -109,6 +110,15 @@ fuzz() {
     ls -l "$findings" >&2
     failed=1
     summary+=("$what ($name): FINDING, the input is in $findings/")
+    # What the input does, rerun alone, for the end of the log: the first lines of the report
+    # (where it stopped) and the input in base64 (so it can be kept as a regression from the log).
+    local input
+    for input in "$findings"/*; do
+      [ -f "$input" ] || continue
+      reports+=("--- $name $(basename "$input") ($(stat -c %s "$input") bytes), base64: $(head -c 4096 "$input" | base64 -w0)")
+      reports+=("$("$dir/tests/fuzz/$name" "$input" -timeout=10 -rss_limit_mb=2048 2>&1 |
+        grep -E 'ERROR|SUMMARY|assert|error|#[0-9]+ 0x[0-9a-f]+ in [^_]' | grep -v -E 'fuzzer::|libc_start|_start ' | head -n 25)")
+    done
     return
   fi
   echo "fuzz.sh: no finding in $seconds s"
@@ -123,4 +133,8 @@ fuzz fuzz_checkpoint "checkpoints" "$dir/checkpoint/findings" "$dir/checkpoint/c
 # One line per target at the end, so that the tail of a long log names any finding.
 echo "fuzz.sh: summary"
 for line in "${summary[@]}"; do echo "  $line"; done
+if [ "${#reports[@]}" -gt 0 ]; then
+  echo "fuzz.sh: each finding rerun alone"
+  for line in "${reports[@]}"; do echo "$line"; done
+fi
 exit "$failed"

@@ -14,6 +14,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string_view>
+#include <vector>
 
 #include "io_text.hpp"
 
@@ -191,6 +192,72 @@ void configure(Assimp::Importer& importer) {
   importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
 }
 
+/// What assimp's post-processing (triangulation, pre-transformed vertices) assumes of the
+/// scene its reader made, checked on that raw scene before the post-processing runs: positions
+/// for every vertex, corners for every face, every index in range, nodes naming existing
+/// meshes. Assimp 5.2's readers can break these on a damaged file, and its post-processing
+/// then aborts the program (Debian's build keeps its assertions: a PLY declaring 2 vertices
+/// and indexing 4 stopped fuzz_mesh in TriangulateProcess.cpp with "numOut !=
+/// pMesh->mNumFaces"). A mesh's primitive-type flags are set from its faces, which is what
+/// the triangulation reads to decide whether there are polygons to split.
+void checkRawScene(aiScene& scene, const std::string& path) {
+  if (scene.mNumMeshes > 0 && scene.mMeshes == nullptr)
+    fail(path, "assimp read " + counted(scene.mNumMeshes, "mesh", "meshes") + " but returned none");
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    aiMesh* mesh = scene.mMeshes[m];
+    const std::string where = "mesh " + std::to_string(m);
+    if (mesh == nullptr) fail(path, where + " is missing");
+    if (mesh->mNumVertices > 0 && mesh->mVertices == nullptr)
+      fail(path, where + " has " + std::to_string(mesh->mNumVertices) + " vertices but no positions");
+    if (mesh->mNumFaces > 0 && mesh->mFaces == nullptr)
+      fail(path, where + " has " + std::to_string(mesh->mNumFaces) + " faces but no face list");
+    unsigned types = 0;
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices == 0 || face.mIndices == nullptr)
+        fail(path, where + " face " + std::to_string(f) + " has no corners");
+      for (unsigned k = 0; k < face.mNumIndices; ++k)
+        if (face.mIndices[k] >= mesh->mNumVertices)
+          fail(path, where + " face " + std::to_string(f) + " corner " + std::to_string(k) +
+                         ": vertex index must be < " + std::to_string(mesh->mNumVertices) + ", got " +
+                         std::to_string(face.mIndices[k]));
+      types |= face.mNumIndices == 1   ? aiPrimitiveType_POINT
+               : face.mNumIndices == 2 ? aiPrimitiveType_LINE
+               : face.mNumIndices == 3 ? aiPrimitiveType_TRIANGLE
+                                       : aiPrimitiveType_POLYGON;
+    }
+    mesh->mPrimitiveTypes = types;
+  }
+  // The node tree, iteratively (a damaged file must not exhaust the stack): every mesh a
+  // node names exists.
+  std::vector<const aiNode*> pending;
+  if (scene.mRootNode != nullptr) pending.push_back(scene.mRootNode);
+  while (!pending.empty()) {
+    const aiNode* node = pending.back();
+    pending.pop_back();
+    if (node->mNumMeshes > 0 && node->mMeshes == nullptr) fail(path, "a node names meshes but lists none");
+    for (unsigned k = 0; k < node->mNumMeshes; ++k)
+      if (node->mMeshes[k] >= scene.mNumMeshes)
+        fail(path, "a node names mesh " + std::to_string(node->mMeshes[k]) + " of " +
+                       counted(scene.mNumMeshes, "mesh", "meshes"));
+    if (node->mNumChildren > 0 && node->mChildren == nullptr) fail(path, "a node has children but lists none");
+    for (unsigned k = 0; k < node->mNumChildren; ++k)
+      if (node->mChildren[k] != nullptr) pending.push_back(node->mChildren[k]);
+  }
+}
+
+/// The scene assimp's reader returned (`raw`, null when it refused the file), checked by
+/// checkRawScene and then triangulated and flattened (kImportFlags).
+const aiScene* postProcessed(Assimp::Importer& importer, const aiScene* raw, const std::string& path) {
+  if (raw == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+  // The importer owns the scene and hands it out as const; it is not a const object, and
+  // ApplyPostProcessing below rewrites it in place anyway.
+  checkRawScene(const_cast<aiScene&>(*raw), path);
+  const aiScene* scene = importer.ApplyPostProcessing(kImportFlags);
+  if (scene == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+  return scene;
+}
+
 TriangleMesh cleaned(const TriangleMesh& raw, const std::string& path, const MeshCleanOptions& options,
                      MeshReport* report) {
   try {
@@ -213,9 +280,7 @@ TriangleMesh loadMesh(const std::string& path) {
   checkPlyHeaderInFile(path);
   Assimp::Importer importer;
   configure(importer);
-  const aiScene* scene = importer.ReadFile(path, kImportFlags);
-  if (scene == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
-  return collectTriangles(scene, path);
+  return collectTriangles(postProcessed(importer, importer.ReadFile(path, 0), path), path);
 }
 
 TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
@@ -225,9 +290,8 @@ TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& 
   const std::string hint = extension.empty() ? std::string() : extension.substr(1);
   Assimp::Importer importer;
   configure(importer);
-  const aiScene* scene = importer.ReadFileFromMemory(contents.data(), contents.size(), kImportFlags, hint.c_str());
-  if (scene == nullptr) fail(name, std::string("assimp cannot read it: ") + importer.GetErrorString());
-  return collectTriangles(scene, name);
+  const aiScene* raw = importer.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
+  return collectTriangles(postProcessed(importer, raw, name), name);
 }
 
 TriangleMesh loadCleanMeshFromMemory(const std::string& contents, const std::string& name,
