@@ -285,13 +285,14 @@ TEST(CollisionAllocation, StepsWithObstaclesRollbackAndMeshesDoNotAllocate) {
       mesh.path->velocity = {0.5, 0, 0};
       mesh.path->angularVelocity = 1;
       c.meshes.push_back(mesh);
-      c.featureAngle = 0;  // every mesh edge is a feature: the edge pass runs
+      c.featureAngle = 0;  // every mesh edge is a feature, every vertex a corner: the edge and corner passes run
       Simulation<double> sim(ModelAndState<double>{cloth.model, cloth.state}, options);
       ASSERT_TRUE(sim.run(3).ok());  // warm-up: TBB workers join the arena
       expectTwentyStepsDoNotAllocate(sim);
       EXPECT_GT(sim.totalCollision().contacts, 0);
       EXPECT_GT(sim.totalCollision().rollbacks, 0);
       EXPECT_GT(sim.totalCollision().edgeContacts, 0);
+      EXPECT_GT(sim.totalCollision().cornerContacts, 0);
       EXPECT_GT(sim.effectTimes().collision, 0);
     }
 }

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 
 #include "collide/contact_solver.hpp"
@@ -297,6 +298,101 @@ TYPED_TEST(Collide, AFastClothEdgeIsCaughtByTheBladeAndTheSameOnTwoThreads) {
   EXPECT_TRUE(bitwiseEqual(one.v, two.v));
   const auto [fell, none] = clothOverBlade<S>(false, 0.3, 20, 1e-3, 0.3, 1);
   EXPECT_LT(fell, -3.0);
+}
+
+/// A spike: a thin, closed square pyramid whose apex is at (x, 0, z), 0.3 m tall on a
+/// 2 cm base. Its four sloping edges are feature edges, so its apex is a corner.
+MeshObstacle spike(double x, double z) {
+  MeshObstacle m;
+  m.name = "spike";
+  m.mesh.vertices = {{x, 0, z},
+                     {x - 0.01, -0.3, z - 0.01},
+                     {x + 0.01, -0.3, z - 0.01},
+                     {x + 0.01, -0.3, z + 0.01},
+                     {x - 0.01, -0.3, z + 0.01}};
+  m.mesh.triangles = {{0, 2, 1}, {0, 3, 2}, {0, 4, 3}, {0, 1, 4}, {1, 2, 3}, {1, 3, 4}};
+  return m;
+}
+
+/// The cloth of clothOverBlade (a free 24² cloth of 3 cm cells, cell corners at x, z =
+/// +-0.015 around the origin) dropped from 5 cm onto a spike whose apex is at the centroid
+/// of one of its triangles, 7 mm from that triangle's nearest edge and farther from its
+/// corners (the thickness is 5 mm): only the apex against the triangle's face can hold the
+/// cloth. Returns the cloth's height above the apex, where the apex is (through the
+/// highest triangle above or below it: the cloth hangs down around the spike), after
+/// `seconds`, and the corner contacts.
+template <class S>
+std::pair<double, std::int64_t> clothOnSpike(bool corners, double seconds, int threads, State<S>* end = nullptr) {
+  ClothGridSpec spec;
+  spec.width = spec.height = 24;
+  spec.spacing = 0.03;
+  spec.origin = {-0.345, 0.05, -0.345};
+  spec.totalMass = 0.2;
+  spec.structural = {20, 0.01};
+  spec.shear = {10, 0.005};
+  spec.bend = {2, 0.001};
+  ModelBuilder<S> b;
+  addClothGrid(b, spec);
+  ModelAndState<S> built = b.build();
+  // The apex under the centroid of the first triangle of the cell [-0.015, 0.015]^2.
+  const Triangles& tr = built.model.triangles();
+  const auto at = [&](Index i, int a) { return static_cast<double>(built.state.x(i, a)); };
+  Index chosen = -1;
+  for (Index t = 0; t < tr.count() && chosen < 0; ++t) {
+    bool inCell = true;
+    for (const Index i : {tr.a[t], tr.b[t], tr.c[t]})
+      inCell = inCell && std::abs(at(i, 0)) < 0.02 && std::abs(at(i, 2)) < 0.02;
+    if (inCell) chosen = t;
+  }
+  EXPECT_GE(chosen, 0);
+  const Index corner[3] = {tr.a[chosen], tr.b[chosen], tr.c[chosen]};
+  const double ax = (at(corner[0], 0) + at(corner[1], 0) + at(corner[2], 0)) / 3,
+               az = (at(corner[0], 2) + at(corner[1], 2) + at(corner[2], 2)) / 3;
+  SimulationOptions o;
+  o.integrator = IntegratorKind::SymplecticEuler;
+  o.dt = 1e-3;
+  o.threads = threads;
+  o.collision.meshes.push_back(spike(ax, az));
+  o.collision.corners = corners;
+  Simulation<S> sim(std::move(built), o);
+  EXPECT_TRUE(sim.run(static_cast<Index>(std::lround(seconds / o.dt))).ok()) << sim.status().message();
+  if (end) *end = sim.state();
+  // The cloth's height over the apex: through the triangle that contains the apex in the
+  // x z plane now, at the apex's x z.
+  const Vec3Array<S>& x = sim.state().x;
+  const Triangles& now = sim.model().triangles();  // `built`, and so `tr`, moved into sim
+  double height = std::numeric_limits<double>::quiet_NaN();
+  for (Index t = 0; t < now.count(); ++t) {
+    const Index i[3] = {now.a[t], now.b[t], now.c[t]};
+    const auto p = [&](int k, int a) { return static_cast<double>(x(i[k], a)); };
+    const double d = (p(1, 0) - p(0, 0)) * (p(2, 2) - p(0, 2)) - (p(2, 0) - p(0, 0)) * (p(1, 2) - p(0, 2));
+    if (d == 0) continue;
+    const double u = ((ax - p(0, 0)) * (p(2, 2) - p(0, 2)) - (p(2, 0) - p(0, 0)) * (az - p(0, 2))) / d,
+                 v = ((p(1, 0) - p(0, 0)) * (az - p(0, 2)) - (ax - p(0, 0)) * (p(1, 2) - p(0, 2))) / d;
+    if (u < 0 || v < 0 || u + v > 1) continue;
+    const double y = (1 - u - v) * p(0, 1) + u * p(1, 1) + v * p(2, 1);
+    if (!(height >= y)) height = y;  // the highest layer over or under the apex
+  }
+  return {height, sim.totalCollision().cornerContacts};  // the apex is at y = 0
+}
+
+TYPED_TEST(Collide, ASpikeCannotPokeThroughAClothFace) {
+  using S = TypeParam;
+  // With the corner pass the cloth tents over the apex, at the thickness (5 mm) above it;
+  // without it the apex passes through the triangle and the cloth ends impaled below it.
+  const auto [held, hits] = clothOnSpike<S>(true, 0.3, 1);
+  EXPECT_GT(held, 0.004) << "the cloth rests on the apex";
+  EXPECT_LT(held, 0.02);
+  EXPECT_GT(hits, 0);
+  const auto [impaled, none] = clothOnSpike<S>(false, 0.3, 1);
+  EXPECT_LT(impaled, 0) << "without the corner pass the apex pokes through";
+  EXPECT_EQ(none, 0);
+  // The corner pass (9 blocks of triangles) gives the same bits on 1 and 2 threads.
+  State<S> one, two;
+  clothOnSpike<S>(true, 0.15, 1, &one);
+  clothOnSpike<S>(true, 0.15, 2, &two);
+  EXPECT_TRUE(bitwiseEqual(one.x, two.x));
+  EXPECT_TRUE(bitwiseEqual(one.v, two.v));
 }
 
 TYPED_TEST(Collide, ACollisionModelIsBuiltOnceAndSharedWithTheSameBits) {

@@ -471,6 +471,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["max_penetration"] = report.maxPenetration;
       j["rollbacks"] = sim.totalCollision().rollbacks;
       j["edge_contacts"] = sim.totalCollision().edgeContacts;
+      j["corner_contacts"] = sim.totalCollision().cornerContacts;
       j["tunnelled"] = report.tunnelled;
     }
     // Cloth against cloth: pairs of triangles (sharing no particle) that intersect at the end
@@ -561,7 +562,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       const weft::ContactReport report = sim.contactReport(&*initial);
       out << "  obstacles    " << report.contacts << " particles in contact at the end (deepest "
           << report.maxPenetration << " m), " << sim.totalCollision().rollbacks << " rollbacks, "
-          << sim.totalCollision().edgeContacts << " edge contacts, " << report.tunnelled << " tunnelled\n";
+          << sim.totalCollision().edgeContacts << " edge contacts, " << sim.totalCollision().cornerContacts
+          << " corner contacts, " << report.tunnelled << " tunnelled\n";
     }
     if (model.triangleCount() > 1) {
       out << "  cloth        " << sim.selfIntersectionCount() << " pairs of triangles intersecting at the end";

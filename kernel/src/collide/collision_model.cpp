@@ -8,7 +8,7 @@
 namespace weft {
 
 CollisionModel::CollisionModel(const CollisionOptions& options)
-    : featureAngle_(options.featureAngle), featureEdges_(options.continuous && options.edges) {
+    : featureAngle_(options.featureAngle), featureEdges_(options.continuous && (options.edges || options.corners)) {
   validateCollision(options);
   const Executor serial(1);
   meshes_.resize(options.meshes.size());
@@ -20,7 +20,10 @@ CollisionModel::CollisionModel(const CollisionOptions& options)
     MeshReport report;
     cleanMesh(options.meshes[k].mesh, MeshCleanOptions{0}, &report);
     c.closed = report.boundaryEdges == 0 && report.nonManifoldEdges == 0;
-    if (featureEdges_) c.featureEdges = detail::featureEdges(c, featureAngle_);
+    if (featureEdges_) {
+      c.featureEdges = detail::featureEdges(c, featureAngle_);
+      c.corners = detail::cornerMasks(c);
+    }
   }
 }
 
@@ -30,7 +33,9 @@ std::size_t CollisionModel::meshCount() const { return meshes_.size(); }
 
 bool CollisionModel::matches(const CollisionOptions& options) const {
   if (options.meshes.size() != meshes_.size()) return false;
-  if (options.continuous && options.edges && !(featureEdges_ && options.featureAngle == featureAngle_)) return false;
+  if (options.continuous && (options.edges || options.corners) &&
+      !(featureEdges_ && options.featureAngle == featureAngle_))
+    return false;
   for (size_t k = 0; k < meshes_.size(); ++k) {
     const TriangleMesh& mesh = options.meshes[k].mesh;
     const MeshCollider& c = meshes_[k];

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "collide/primitive_contact.hpp"
 #include "contact_math.hpp"
 #include "contact_response.hpp"
 #include "mesh_queries.hpp"
@@ -22,7 +23,7 @@ using namespace detail;
 
 template <class S>
 ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges,
-                                std::shared_ptr<const CollisionModel> model)
+                                std::shared_ptr<const CollisionModel> model, Triangles triangles)
     : options_(options) {
   validateCollision(options_);
   for (size_t k = 0; k < edges.size(); ++k)
@@ -35,6 +36,12 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
         "ContactSolver: the collision model was built from other mesh obstacles (or another featureAngle) than "
         "these CollisionOptions (" +
         std::to_string(options_.meshes.size()) + " meshes)");
+  for (const IndexArray* corner : {&triangles.a, &triangles.b, &triangles.c})
+    if (corner->rows() != triangles.a.rows() ||
+        (corner->rows() > 0 && (corner->minCoeff() < 0 || corner->maxCoeff() >= particleCount)))
+      throw std::invalid_argument("ContactSolver: the triangles' corners must be particles in [0, " +
+                                  std::to_string(particleCount) + "), " + std::to_string(triangles.count()) +
+                                  " triangles");
   if (options_.continuous && options_.edges && !options_.meshes.empty()) {
     edges_ = std::move(edges);
     edgeHits_.resize(edges_.size());
@@ -56,6 +63,12 @@ ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleC
     edges_.clear();
     edgeHits_.clear();
   }
+  // The corner pass needs a mesh with corners and a cloth.
+  if (options_.continuous && options_.corners && triangles.count() > 0 &&
+      std::any_of(meshes.begin(), meshes.end(), [](const MeshCollider& c) { return !c.corners.empty(); })) {
+    triangles_ = std::move(triangles);
+    cornerHits_.resize(static_cast<size_t>(triangles_.count()));
+  }
 }
 
 namespace {
@@ -67,6 +80,64 @@ inline double* clearanceOf(std::vector<double>& clearance, size_t m, Index i, In
 // The lower bound on the distance to the mesh of every point within `reach` of p.
 inline double clearanceBound(const double* c, V p, double reach) {
   return c[3] - norm(p - V{c[0], c[1], c[2]}) - reach;
+}
+
+// f(0) + f(1) (+ f(2)), written out so that the compiler sees one expression.
+template <int N, class F>
+auto sumOver(F f) {
+  static_assert(N == 2 || N == 3);
+  if constexpr (N == 2)
+    return f(0) + f(1);
+  else
+    return f(0) + f(1) + f(2);
+}
+
+// The response to a contact between a mesh obstacle and the point sum_k beta[k] x1[idx[k]]
+// of N particles (an edge's point, N = 2; a triangle's, N = 3): the point goes back to the
+// thickness h from the mesh point q along n (both in the mesh's frame, n unit from q
+// towards the particles), and its velocity relative to the mesh gets the contact's
+// restitution and friction. Both changes are shared by the N particles in proportion to
+// beta w, so the point's change is exactly the one asked for. False when every particle
+// of the point is pinned (nothing moves).
+template <int N, class S>
+bool respondPoint(const CollisionOptions& options, const MeshObstacle& mo, const Index (&idx)[N],
+                  const double (&beta)[N], V n, V q, const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
+                  const ScalarArray<S>& w, double t0, double t1) {
+  const double h = options.thickness;
+  double wk[N];
+  for (int k = 0; k < N; ++k) wk[k] = static_cast<double>(w[idx[k]]);
+  const double weight = sumOver<N>([&](int k) { return beta[k] * beta[k] * wk[k]; });
+  if (!(weight > 0)) return false;  // the contact point sits on pinned particles
+  V p[N];
+  for (int k = 0; k < N; ++k) p[k] = toBody(mo, row(x1, idx[k]), t1);
+  const double separation = dot(sumOver<N>([&](int k) { return beta[k] * p[k]; }) - q, n);
+  if (separation < h) {
+    const double lambda = (h - separation) / weight;
+    for (int k = 0; k < N; ++k) p[k] = p[k] + (lambda * beta[k] * wk[k]) * n;
+  }
+  const V qEnd = toWorld(mo, q, t1);
+  const V surfaceVelocity = mo.path && t1 > t0 ? (1 / (t1 - t0)) * (qEnd - toWorld(mo, q, t0)) : V{0, 0, 0};
+  const V nw = mo.path ? v(kinematicRotate(*mo.path, d3(n), t1)) : n;
+  V vk[N];
+  for (int k = 0; k < N; ++k) vk[k] = row(v1, idx[k]);
+  const V relative = sumOver<N>([&](int k) { return beta[k] * vk[k]; }) - surfaceVelocity;
+  V after = relative;
+  const double factor = respondVelocity(surface(mo), options.restingSpeed, nw, after);
+  const V change = after - relative;
+  for (int k = 0; k < N; ++k) vk[k] = vk[k] + (beta[k] * wk[k] / weight) * change;
+  if (factor < 1) {
+    // Friction on the contact point's tangential motion over the chunk, as for a particle.
+    const V start = sumOver<N>([&](int k) { return beta[k] * toBody(mo, row(x0, idx[k]), t0); });
+    const V moved = sumOver<N>([&](int k) { return beta[k] * p[k]; }) - start;
+    const V slide = (-(1 - factor)) * (moved - dot(moved, n) * n);
+    for (int k = 0; k < N; ++k) p[k] = p[k] + (beta[k] * wk[k] / weight) * slide;
+  }
+  for (int k = 0; k < N; ++k) {
+    if (!(wk[k] > 0)) continue;
+    setRow(x1, idx[k], toWorld(mo, p[k], t1));
+    setRow(v1, idx[k], vk[k]);
+  }
+  return true;
 }
 
 }  // namespace
@@ -165,6 +236,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
     stats.maxPenetration = std::max(stats.maxPenetration, blockDepth_[k]);
   }
   if (!edges_.empty()) stats.edgeContacts = resolveEdges(x0, x1, v1, w, t0, t1, exec);
+  if (!cornerHits_.empty()) stats.cornerContacts = resolveCorners(x0, x1, v1, w, t0, t1, exec);
   return stats;
 }
 
@@ -202,55 +274,103 @@ std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>
       }
     }
   });
-  // Response, serially in edge order (edges share particles): the contact point of the
-  // edge, at alpha between its ends, goes back to the thickness along the normal, and its
-  // velocity relative to the mesh gets the contact's restitution and friction; both
-  // changes are shared by the two ends in proportion to their inverse masses (the
-  // point's change is exactly the one asked for).
+  // Response, serially in edge order (edges share particles): respondPoint at the edge's
+  // point alpha between its ends.
   std::int64_t hits = 0;
   for (Index k = 0; k < edgeCount; ++k) {
     const EdgeHit& r = edgeHits_[static_cast<size_t>(k)];
     if (r.mesh < 0) continue;
     const auto [i, j] = edges_[static_cast<size_t>(k)];
-    const MeshObstacle& mo = options_.meshes[static_cast<size_t>(r.mesh)];
-    const double wi = static_cast<double>(w[i]), wj = static_cast<double>(w[j]), al = r.alpha;
-    const double weight = (1 - al) * (1 - al) * wi + al * al * wj;
-    if (!(weight > 0)) continue;  // the contact point sits on a pinned end
-    ++hits;
-    const V n{r.normal[0], r.normal[1], r.normal[2]}, q{r.point[0], r.point[1], r.point[2]};
-    V a = toBody(mo, row(x1, i), t1), b = toBody(mo, row(x1, j), t1);
-    const double separation = dot((1 - al) * a + al * b - q, n);
-    if (separation < h) {
-      const double lambda = (h - separation) / weight;
-      a = a + (lambda * (1 - al) * wi) * n;
-      b = b + (lambda * al * wj) * n;
+    const Index idx[2] = {i, j};
+    const double beta[2] = {1 - r.alpha, r.alpha};
+    if (respondPoint(options_, options_.meshes[static_cast<size_t>(r.mesh)], idx, beta,
+                     V{r.normal[0], r.normal[1], r.normal[2]}, V{r.point[0], r.point[1], r.point[2]}, x0, x1, v1, w, t0,
+                     t1))
+      ++hits;
+  }
+  return hits;
+}
+
+template <class S>
+std::int64_t ContactSolver<S>::resolveCorners(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
+                                              const ScalarArray<S>& w, double t0, double t1, const Executor& exec) {
+  // Detection, per cloth triangle and in parallel, on the particles' motion x0 -> x1 as
+  // resolved so far: the earliest time a mesh corner comes within the thickness of the
+  // triangle (conservative advancement; no hit proves it stayed beyond half the thickness).
+  const double h = options_.thickness, eps = options_.epsilon;
+  const Index n = static_cast<Index>(x1.rows());
+  const Index triangleCount = triangles_.count();
+  exec.parallelForBlocks(triangleCount, kGrain, [&](Index, Index b, Index e) {
+    for (Index t = b; t < e; ++t) {
+      CornerHit& record = cornerHits_[static_cast<size_t>(t)];
+      record.mesh = -1;
+      const Index idx[3] = {triangles_.a[t], triangles_.b[t], triangles_.c[t]};
+      if (w[idx[0]] == S(0) && w[idx[1]] == S(0) && w[idx[2]] == S(0)) continue;
+      double first = 2;
+      for (size_t m = 0; m < model_->meshes().size(); ++m) {
+        const MeshCollider& mesh = model_->meshes()[m];
+        if (mesh.corners.empty()) continue;
+        const MeshObstacle& mo = options_.meshes[m];
+        V p[3][2];
+        for (int k = 0; k < 3; ++k) {
+          p[k][0] = toBody(mo, row(x0, idx[k]), t0);
+          p[k][1] = toBody(mo, row(x1, idx[k]), t1);
+        }
+        // Every point of the triangle over the chunk is within `reach` of its first
+        // corner's clearance point: the mesh (its corners included) is at least
+        // clearance - reach away (see clearance_).
+        const double* clear = clearanceOf(clearance_, m, idx[0], n);
+        const V r{clear[0], clear[1], clear[2]};
+        double reach = 0;
+        for (int k = 0; k < 3; ++k) reach = std::max({reach, norm(p[k][0] - r), norm(p[k][1] - r)});
+        if (clear[3] - reach > h + 2 * eps) continue;
+        const Aabb<double> box = boxAround({p[0][0], p[0][1], p[1][0], p[1][1], p[2][0], p[2][1]}, h + eps);
+        Vec3<double> a[2], bb[2], c[2];
+        for (int s = 0; s < 2; ++s) {
+          a[s] = e3(p[0][s]);
+          bb[s] = e3(p[1][s]);
+          c[s] = e3(p[2][s]);
+        }
+        mesh.bvh.forEachOverlapping(box, [&](Index mt) {
+          const std::uint8_t mask = mesh.corners[static_cast<size_t>(mt)];
+          if (mask == 0) return;
+          const Index corner[3] = {mesh.triangles.a[mt], mesh.triangles.b[mt], mesh.triangles.c[mt]};
+          for (int k = 0; k < 3; ++k) {
+            if (!(mask & (1u << k))) continue;
+            const Index qi = corner[k];
+            const double qc[3] = {mesh.x(qi, 0), mesh.x(qi, 1), mesh.x(qi, 2)};
+            bool inside = true;
+            for (int axis = 0; axis < 3; ++axis)
+              inside = inside && qc[axis] >= box.lo[axis] && qc[axis] <= box.hi[axis];
+            if (!inside) continue;
+            const Vec3<double> q[2] = {{qc[0], qc[1], qc[2]}, {qc[0], qc[1], qc[2]}};
+            const PrimitiveContact hit = vertexTriangleContact(q, a, bb, c, h);
+            if (!hit.hit || !(hit.time < first)) continue;
+            const double nn =
+                hit.normal[0] * hit.normal[0] + hit.normal[1] * hit.normal[1] + hit.normal[2] * hit.normal[2];
+            if (!(nn > 0)) continue;  // a degenerate triangle touching the corner: no side to push to
+            first = hit.time;
+            record.mesh = static_cast<int>(m);
+            for (int i = 0; i < 3; ++i) {
+              record.beta[i] = -hit.weights[i + 1];
+              record.point[i] = qc[i];
+              record.normal[i] = -hit.normal[i];  // the query's normal points at the corner
+            }
+          }
+        });
+      }
     }
-    const V qEnd = toWorld(mo, q, t1);
-    const V surfaceVelocity = mo.path && t1 > t0 ? (1 / (t1 - t0)) * (qEnd - toWorld(mo, q, t0)) : V{0, 0, 0};
-    const V nw = mo.path ? v(kinematicRotate(*mo.path, d3(n), t1)) : n;
-    const V vi = row(v1, i), vj = row(v1, j);
-    const V relative = (1 - al) * vi + al * vj - surfaceVelocity;
-    V after = relative;
-    const double factor = respondVelocity(surface(mo), options_.restingSpeed, nw, after);
-    const V change = after - relative;
-    const V vi1 = vi + ((1 - al) * wi / weight) * change, vj1 = vj + (al * wj / weight) * change;
-    if (factor < 1) {
-      // Friction on the contact point's tangential motion over the chunk, as for a particle.
-      const V start = (1 - al) * toBody(mo, row(x0, i), t0) + al * toBody(mo, row(x0, j), t0);
-      const V moved = (1 - al) * a + al * b - start;
-      const V slide = (-(1 - factor)) * (moved - dot(moved, n) * n);
-      a = a + ((1 - al) * wi / weight) * slide;
-      b = b + (al * wj / weight) * slide;
-    }
-    const V ai = toWorld(mo, a, t1), bj = toWorld(mo, b, t1);
-    if (wi > 0) {
-      setRow(x1, i, ai);
-      setRow(v1, i, vi1);
-    }
-    if (wj > 0) {
-      setRow(x1, j, bj);
-      setRow(v1, j, vj1);
-    }
+  });
+  // Response, serially in triangle order (triangles share particles).
+  std::int64_t hits = 0;
+  for (Index t = 0; t < triangleCount; ++t) {
+    const CornerHit& r = cornerHits_[static_cast<size_t>(t)];
+    if (r.mesh < 0) continue;
+    const Index idx[3] = {triangles_.a[t], triangles_.b[t], triangles_.c[t]};
+    if (respondPoint(options_, options_.meshes[static_cast<size_t>(r.mesh)], idx, r.beta,
+                     V{r.normal[0], r.normal[1], r.normal[2]}, V{r.point[0], r.point[1], r.point[2]}, x0, x1, v1, w, t0,
+                     t1))
+      ++hits;
   }
   return hits;
 }

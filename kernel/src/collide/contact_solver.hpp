@@ -26,6 +26,10 @@ struct MeshCollider {
   /// Per triangle, bit k set: its edge k (corners k, k + 1) is a feature edge that this
   /// triangle tests (each edge by one triangle). Empty when the mesh has none.
   std::vector<std::uint8_t> featureEdges;
+  /// Per triangle, bit k set: its corner k is a corner of the mesh (an end of a feature
+  /// edge) that this triangle tests against cloth triangles (each corner by one triangle).
+  /// Empty when the mesh has none.
+  std::vector<std::uint8_t> corners;
 };
 
 /// The response pass over one candidate state. Sized at construction (the BVHs of the mesh
@@ -43,8 +47,11 @@ class ContactSolver {
   /// on; none: vertices only.
   /// `model`: the mesh obstacles prepared once (weft/collide/collision_model.hpp), built
   /// from these options' meshes; none: the solver prepares its own.
+  /// `triangles` (the cloth's) are tested against the corners of mesh obstacles when
+  /// CollisionOptions::continuous and ::corners are on and a mesh has corners; none: no
+  /// corner pass.
   ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges = {},
-                std::shared_ptr<const CollisionModel> model = nullptr);
+                std::shared_ptr<const CollisionModel> model = nullptr, Triangles triangles = {});
 
   /// Deepest penetration (thickness - distance, >= 0) of the candidate positions x1 at
   /// time t1 over free particles (inverse mass w > 0): what rollback compares with
@@ -76,6 +83,8 @@ class ContactSolver {
  private:
   std::int64_t resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
                             double t0, double t1, const Executor& exec);
+  std::int64_t resolveCorners(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
+                              double t0, double t1, const Executor& exec);
 
   CollisionOptions options_;
   std::shared_ptr<const CollisionModel> model_;
@@ -95,6 +104,16 @@ class ContactSolver {
   std::vector<double> clearance_;  // (meshes x particles x 4): r, c
   std::vector<Edge> edges_;
   std::vector<EdgeHit> edgeHits_;  // (edges)
+  /// What the corner pass found for one cloth triangle, in the frame of mesh `mesh` (-1:
+  /// nothing).
+  struct CornerHit {
+    int mesh = -1;
+    double beta[3] = {0, 0, 0};    // the contact point on the triangle, barycentric
+    double point[3] = {0, 0, 0};   // the mesh corner
+    double normal[3] = {0, 0, 0};  // unit, from the corner towards the triangle
+  };
+  Triangles triangles_;                // the cloth's, when the corner pass runs
+  std::vector<CornerHit> cornerHits_;  // (triangles)
 };
 
 extern template class ContactSolver<float>;

@@ -144,6 +144,33 @@ std::vector<std::uint8_t> featureEdges(const MeshCollider& c, double degrees) {
   return mask;
 }
 
+// The corners of a mesh (see MeshCollider::corners): the ends of its feature edges, each
+// given to the first triangle that has it.
+std::vector<std::uint8_t> cornerMasks(const MeshCollider& c) {
+  std::vector<std::uint8_t> mask;
+  if (c.featureEdges.empty()) return mask;
+  const Index nt = c.triangles.count();
+  std::vector<std::uint8_t> corner(static_cast<size_t>(c.x.rows()), 0);  // 1: a corner, 2: given to a triangle
+  for (Index t = 0; t < nt; ++t) {
+    const Index v[3] = {c.triangles.a[t], c.triangles.b[t], c.triangles.c[t]};
+    for (int k = 0; k < 3; ++k)
+      if (c.featureEdges[static_cast<size_t>(t)] & (1u << k)) {
+        corner[static_cast<size_t>(v[k])] = 1;
+        corner[static_cast<size_t>(v[(k + 1) % 3])] = 1;
+      }
+  }
+  mask.assign(c.featureEdges.size(), 0);  // one per triangle
+  for (Index t = 0; t < nt; ++t) {
+    const Index v[3] = {c.triangles.a[t], c.triangles.b[t], c.triangles.c[t]};
+    for (int k = 0; k < 3; ++k)
+      if (corner[static_cast<size_t>(v[k])] == 1) {
+        corner[static_cast<size_t>(v[k])] = 2;
+        mask[static_cast<size_t>(t)] |= static_cast<std::uint8_t>(1u << k);
+      }
+  }
+  return mask;
+}
+
 // Deepest penetration (thickness - distance) of the point p at time t over every obstacle:
 // negative when clear (minus the smallest gap; -infinity when no mesh is within the thickness).
 double pointPenetration(const CollisionOptions& opt, const std::vector<MeshCollider>& meshes, V p, double t) {

@@ -39,6 +39,10 @@ EdgeProbe closestMeshEdge(const MeshCollider& c, V a, V b, const Aabb<double>& b
 /// when the mesh has none.
 std::vector<std::uint8_t> featureEdges(const MeshCollider& c, double degrees);
 
+/// Per triangle, a bit mask of the corners it tests (see MeshCollider::corners), from the
+/// feature edges; empty when the mesh has none.
+std::vector<std::uint8_t> cornerMasks(const MeshCollider& c);
+
 /// Deepest penetration (thickness - distance) of p at time t over every obstacle.
 double pointPenetration(const CollisionOptions& opt, const std::vector<MeshCollider>& meshes, V p, double t);
 

@@ -123,6 +123,7 @@ CollisionStats& CollisionStats::operator+=(const CollisionStats& o) {
   contacts += o.contacts;
   continuousHits += o.continuousHits;
   edgeContacts += o.edgeContacts;
+  cornerContacts += o.cornerContacts;
   rollbacks += o.rollbacks;
   acceptedDeep += o.acceptedDeep;
   maxPenetration = std::max(maxPenetration, o.maxPenetration);

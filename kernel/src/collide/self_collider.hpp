@@ -1,5 +1,5 @@
-// collide/self_collision.hpp's pass (internal): SelfCollider, and the continuous
-// vertex-triangle and edge-edge queries it is built on. The design note is in the public
+// collide/self_collision.hpp's pass (internal): SelfCollider, built on the continuous
+// vertex-triangle and edge-edge queries of collide/primitive_contact.hpp. The design note is in the public
 // weft/collide/self_collision.hpp. Not installed: a Simulation owns its SelfCollider.
 #pragma once
 
@@ -10,6 +10,7 @@
 
 #include "collide/bvh.hpp"
 #include "collide/geometry.hpp"
+#include "collide/primitive_contact.hpp"
 #include "weft/collide/self_collision.hpp"
 #include "weft/core/archive.hpp"
 #include "weft/core/parallel.hpp"
@@ -17,25 +18,6 @@
 #include "weft/model/model.hpp"
 
 namespace weft {
-
-/// What a continuous proximity query found (primitiveContact below).
-struct PrimitiveContact {
-  bool hit = false;
-  bool capped = false;               // the step cap was reached: reported as a contact without proof
-  double time = 0;                   // s in [0, 1] where the distance was below the threshold
-  double distance = 0;               // the distance there, m
-  double weights[4] = {0, 0, 0, 0};  // beta of the four vertices (see the design note)
-  double normal[3] = {0, 0, 0};      // unit, towards the first primitive; zero if undefined
-};
-
-/// A moving point p against a moving triangle (a, b, c), or a moving edge (p, a) against a
-/// moving edge (b, c): index 0 of each array is the position at s = 0, index 1 at s = 1.
-/// Returns the first s found with distance < threshold (> 0), starting at `start`; no hit
-/// proves the distance stayed >= threshold / 2 over [start, 1].
-PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<double> a[2], const Vec3<double> b[2],
-                                       const Vec3<double> c[2], double threshold, double start = 0);
-PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
-                                 const Vec3<double> b[2], double threshold, double start = 0);
 
 /// The self-collision pass of one Model (see the design note). Sized at construction.
 template <class S>

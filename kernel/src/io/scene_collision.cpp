@@ -28,11 +28,12 @@ void readSelfCollision(const Reader& r, const Json& j, const std::string& f, Sel
 void readCollision(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory,
                    CollisionOptions& c, std::vector<MeshObstacleSpec>& meshes) {
   r.object(j, f,
-           {"obstacles", "thickness", "continuous", "edges", "feature_angle", "epsilon", "resting_speed",
+           {"obstacles", "thickness", "continuous", "edges", "corners", "feature_angle", "epsilon", "resting_speed",
             "max_penetration", "max_halvings"});
   c.thickness = r.anyNumber(j, f, "thickness", c.thickness);
   c.continuous = r.boolean(j, f, "continuous", c.continuous);
   c.edges = r.boolean(j, f, "edges", c.edges);
+  c.corners = r.boolean(j, f, "corners", c.corners);
   c.featureAngle = r.anyNumber(j, f, "feature_angle", c.featureAngle);
   c.epsilon = r.anyNumber(j, f, "epsilon", std::min(c.epsilon, 0.5 * c.thickness));
   c.restingSpeed = r.anyNumber(j, f, "resting_speed", c.restingSpeed);

@@ -95,8 +95,11 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     const CollisionOptions& c = options_.collision;
     std::vector<Edge> edges;
     if (c.continuous && c.edges && !c.meshes.empty()) edges = model_->collisionEdges();  // derived once per Model
+    // The cloth's triangles, tested against the meshes' corners.
+    Triangles triangles;
+    if (c.continuous && c.corners && !c.meshes.empty()) triangles = model_->triangles();
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
-                                                   options_.collisionModel);
+                                                   options_.collisionModel, std::move(triangles));
   }
   if (options_.selfCollision.enabled) {
     validateSelfCollision(options_.selfCollision, *model_, state_.x, "SimulationOptions.selfCollision");

@@ -1,11 +1,11 @@
 // weft/collide/collision_model.hpp — what the contact pass only reads, built once: each
 // mesh obstacle prepared for queries (its vertices in double, its triangles, a BVH over
-// them, whether it is closed, its feature edges).
+// them, whether it is closed, its feature edges and corners).
 //
 // Design note
 // -----------
-// Preparing a mesh obstacle costs a BVH build, a closedness check and, for the edge pass,
-// a sort of its edges: work that depends on the obstacle alone, not on the cloth or the
+// Preparing a mesh obstacle costs a BVH build, a closedness check and, for the edge and
+// corner passes, a sort of its edges: work that depends on the obstacle alone, not on the cloth or the
 // state. A CollisionModel holds it, immutable after construction, so several Simulations
 // (a batch of runs, the accuracy study, a program restarting a scene) share one by
 // SimulationOptions::collisionModel, as they share one particle Model; without one, each
@@ -43,7 +43,7 @@ class CollisionModel {
  private:
   std::vector<MeshCollider> meshes_;
   double featureAngle_ = 0;
-  bool featureEdges_ = false;  // computed (continuous detection with edges)
+  bool featureEdges_ = false;  // feature edges and corners computed (continuous detection with edges or corners)
 };
 
 }  // namespace weft

@@ -102,6 +102,8 @@ struct CollisionOptions {
   double thickness = 0.005;          // particle radius / cloth thickness, m (> 0)
   bool continuous = true;            // continuous detection (no tunnelling)
   bool edges = true;                 // with continuous: cloth and rope edges against the meshes' feature edges too
+  bool corners = true;               // with continuous: the meshes' corners (ends of feature edges) against cloth
+                                     // triangles too, so that a sharp corner cannot poke through a cloth face
   double featureAngle = 30;          // degrees in [0, 180]: a mesh edge whose faces' normals differ by at least
                                      // this much (or with one face, or more than two) is a feature edge; 0: every edge
   double epsilon = 1e-5;             // time-of-impact tolerance, m (> 0, < thickness)
@@ -122,6 +124,7 @@ struct CollisionStats {
   std::int64_t contacts = 0;        // particles whose candidate state touched an obstacle
   std::int64_t continuousHits = 0;  // of which found only by continuous detection
   std::int64_t edgeContacts = 0;    // cloth / rope edges that hit a mesh edge (CollisionOptions::edges)
+  std::int64_t cornerContacts = 0;  // cloth triangles that hit a mesh corner (CollisionOptions::corners)
   std::int64_t rollbacks = 0;       // chunks rolled back and retried with half the time
   std::int64_t acceptedDeep = 0;    // chunks accepted at the halving limit above maxPenetration
   double maxPenetration = 0;        // deepest penetration seen before the response, m

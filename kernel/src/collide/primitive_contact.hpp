@@ -1,0 +1,29 @@
+// collide/primitive_contact.hpp (internal): the continuous vertex-triangle and edge-edge
+// proximity queries (conservative advancement, defined in self_collision.cpp) that the
+// self-collision pass and the contact pass's mesh corners are built on.
+#pragma once
+
+#include "collide/geometry.hpp"
+
+namespace weft {
+
+/// What a continuous proximity query found (the two queries below).
+struct PrimitiveContact {
+  bool hit = false;
+  bool capped = false;               // the step cap was reached: reported as a contact without proof
+  double time = 0;                   // s in [0, 1] where the distance was below the threshold
+  double distance = 0;               // the distance there, m
+  double weights[4] = {0, 0, 0, 0};  // beta of the four vertices (see the design note)
+  double normal[3] = {0, 0, 0};      // unit, towards the first primitive; zero if undefined
+};
+
+/// A moving point p against a moving triangle (a, b, c), or a moving edge (p, a) against a
+/// moving edge (b, c): index 0 of each array is the position at s = 0, index 1 at s = 1.
+/// Returns the first s found with distance < threshold (> 0), starting at `start`; no hit
+/// proves the distance stayed >= threshold / 2 over [start, 1].
+PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<double> a[2], const Vec3<double> b[2],
+                                       const Vec3<double> c[2], double threshold, double start = 0);
+PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
+                                 const Vec3<double> b[2], double threshold, double start = 0);
+
+}  // namespace weft
