@@ -82,6 +82,42 @@ inline double clearanceBound(const double* c, V p, double reach) {
   return c[3] - norm(p - V{c[0], c[1], c[2]}) - reach;
 }
 
+// A lower bound on the distance to the mesh of every point of a cloth edge over a chunk
+// (its ends moving a0 -> a1 and b0 -> b1, in the mesh's frame), from its ends' clearance
+// records ca and cb. The point at alpha along the edge is within da + alpha L of a's
+// record point and within db + (1 - alpha) L of b's (da, db: the farthest each end gets
+// from its record point; L: the edge's greatest length), so its distance is at least the
+// larger of ca - da - alpha L and cb - db - (1 - alpha) L: the bound is the least of that
+// over alpha. NaN (no record for either end) skips nothing.
+inline double edgeClearance(const double* ca, const double* cb, V a0, V a1, V b0, V b1) {
+  const V ra{ca[0], ca[1], ca[2]}, rb{cb[0], cb[1], cb[2]};
+  const double ea = ca[3] - std::max(norm(a0 - ra), norm(a1 - ra));
+  const double eb = cb[3] - std::max(norm(b0 - rb), norm(b1 - rb));
+  const double length = std::max(norm(b0 - a0), norm(b1 - a1));
+  if (!(length > 0)) return std::max(ea, eb);
+  const double alpha = std::clamp((ea - eb + length) / (2 * length), 0.0, 1.0);
+  return std::max(ea - alpha * length, eb - (1 - alpha) * length);
+}
+
+// A lower bound on the distance to the mesh of every point of a cloth triangle over a
+// chunk (corner k moving p[k][0] -> p[k][1], in the mesh's frame), from its corners'
+// clearance records c[k]: its centroid g stays at least c[k] - (the farthest g gets from
+// corner k's record point) from the mesh, and every point of the triangle is within rho
+// (the farthest a corner gets from g) of g.
+inline double triangleClearance(const double* const (&c)[3], const V (&p)[3][2]) {
+  double best = -std::numeric_limits<double>::infinity(), rho = 0;
+  V g[2];
+  for (int s = 0; s < 2; ++s) {
+    g[s] = (1.0 / 3) * (p[0][s] + p[1][s] + p[2][s]);
+    for (int k = 0; k < 3; ++k) rho = std::max(rho, norm(p[k][s] - g[s]));
+  }
+  for (int k = 0; k < 3; ++k) {
+    const V r{c[k][0], c[k][1], c[k][2]};
+    best = std::max(best, c[k][3] - std::max(norm(g[0] - r), norm(g[1] - r)));
+  }
+  return best - rho;
+}
+
 // f(0) + f(1) (+ f(2)), written out so that the compiler sees one expression.
 template <int N, class F>
 auto sumOver(F f) {
@@ -246,6 +282,7 @@ std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>
   // Detection, per edge and in parallel, on the particles' resolved motion x0 -> x1: the
   // earliest contact over the mesh obstacles.
   const double h = options_.thickness, eps = options_.epsilon;
+  const Index particles = static_cast<Index>(x1.rows());
   const auto edgeCount = static_cast<Index>(edges_.size());
   exec.parallelForBlocks(edgeCount, kGrain, [&](Index, Index b, Index e) {
     for (Index k = b; k < e; ++k) {
@@ -257,9 +294,14 @@ std::int64_t ContactSolver<S>::resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>
       double first = 2;
       for (size_t m = 0; m < model_->meshes().size(); ++m) {
         const MeshObstacle& mo = options_.meshes[m];
+        const V a0 = toBody(mo, pi0, t0), a1 = toBody(mo, pi1, t1), b0 = toBody(mo, pj0, t0), b1 = toBody(mo, pj1, t1);
+        // The whole edge farther than the thickness from the mesh over the chunk: no
+        // contact, as edgeImpact would find.
+        if (edgeClearance(clearanceOf(clearance_, m, i, particles), clearanceOf(clearance_, m, j, particles), a0, a1,
+                          b0, b1) > h + 2 * eps)
+          continue;
         EdgeProbe probe;
-        const double s = edgeImpact(model_->meshes()[m], toBody(mo, pi0, t0), toBody(mo, pi1, t1), toBody(mo, pj0, t0),
-                                    toBody(mo, pj1, t1), h, eps, probe);
+        const double s = edgeImpact(model_->meshes()[m], a0, a1, b0, b1, h, eps, probe);
         if (!(s < first)) continue;
         first = s;
         const V n = (1 / probe.distance) * (probe.onEdge - probe.onMesh);
@@ -316,14 +358,11 @@ std::int64_t ContactSolver<S>::resolveCorners(const Vec3Array<S>& x0, Vec3Array<
           p[k][0] = toBody(mo, row(x0, idx[k]), t0);
           p[k][1] = toBody(mo, row(x1, idx[k]), t1);
         }
-        // Every point of the triangle over the chunk is within `reach` of its first
-        // corner's clearance point: the mesh (its corners included) is at least
-        // clearance - reach away (see clearance_).
-        const double* clear = clearanceOf(clearance_, m, idx[0], n);
-        const V r{clear[0], clear[1], clear[2]};
-        double reach = 0;
-        for (int k = 0; k < 3; ++k) reach = std::max({reach, norm(p[k][0] - r), norm(p[k][1] - r)});
-        if (clear[3] - reach > h + 2 * eps) continue;
+        // The whole triangle farther than the thickness from the mesh (its corners
+        // included) over the chunk: nothing to find.
+        const double* const clear[3] = {clearanceOf(clearance_, m, idx[0], n), clearanceOf(clearance_, m, idx[1], n),
+                                        clearanceOf(clearance_, m, idx[2], n)};
+        if (triangleClearance(clear, p) > h + 2 * eps) continue;
         const Aabb<double> box = boxAround({p[0][0], p[0][1], p[1][0], p[1][1], p[2][0], p[2][1]}, h + eps);
         Vec3<double> a[2], bb[2], c[2];
         for (int s = 0; s < 2; ++s) {
