@@ -3,6 +3,7 @@
 // thread-scaling target). BM_Textbook_Rk4: the array-of-structs baseline, 1 thread,
 // double, same scene and dt. Each reports allocations per step (expected 0 for weft).
 // BM_SimulatedSecond_*: cost per simulated second at each method's largest stable step.
+// BM_Scaling_*: the step from 32^2 to 1024^2 (bench/run_scaling.sh).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -70,6 +71,37 @@ WEFT_INTEGRATOR(BM_Integrator_Implicit_float, float, IntegratorKind::ImplicitEul
 WEFT_INTEGRATOR(BM_Integrator_Implicit_double, double, IntegratorKind::ImplicitEuler);
 WEFT_INTEGRATOR(BM_Integrator_Projective_float, float, IntegratorKind::Projective);
 WEFT_INTEGRATOR(BM_Integrator_Projective_double, double, IntegratorKind::Projective);
+
+// BM_Scaling_*: the same step from 32^2 to 1024^2 particles (implicit Euler to 512^2,
+// projective dynamics to 256^2: their factorisation and solve grow faster than the rest),
+// 1 and 2 threads, for the cost-against-size plot. Not part of the default run
+// (bench/run_benchmarks.sh filters them out): bench/run_scaling.sh runs and plots them.
+void scalingArgs(benchmark::internal::Benchmark* b) {
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {32, 64, 128, 256, 512, 1024}, benchmark::kMicrosecond);
+}
+void scalingArgsImplicit(benchmark::internal::Benchmark* b) {
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {32, 64, 128, 256, 512}, benchmark::kMicrosecond);
+}
+void scalingArgsProjective(benchmark::internal::Benchmark* b) {
+  weftbench::valuesOnOneAndTwoThreads(b, "size", {32, 64, 128, 256}, benchmark::kMicrosecond);
+}
+#define WEFT_SCALING(NAME, ARGS, S, KIND) WEFT_BENCHMARK_AS(NAME, ARGS, BM_Integrator<S, KIND>)
+WEFT_SCALING(BM_Scaling_Euler_float, scalingArgs, float, IntegratorKind::ExplicitEuler);
+WEFT_SCALING(BM_Scaling_Euler_double, scalingArgs, double, IntegratorKind::ExplicitEuler);
+WEFT_SCALING(BM_Scaling_Symplectic_float, scalingArgs, float, IntegratorKind::SymplecticEuler);
+WEFT_SCALING(BM_Scaling_Symplectic_double, scalingArgs, double, IntegratorKind::SymplecticEuler);
+WEFT_SCALING(BM_Scaling_Midpoint_float, scalingArgs, float, IntegratorKind::Midpoint);
+WEFT_SCALING(BM_Scaling_Midpoint_double, scalingArgs, double, IntegratorKind::Midpoint);
+WEFT_SCALING(BM_Scaling_Rk4_float, scalingArgs, float, IntegratorKind::Rk4);
+WEFT_SCALING(BM_Scaling_Rk4_double, scalingArgs, double, IntegratorKind::Rk4);
+WEFT_SCALING(BM_Scaling_Verlet_float, scalingArgs, float, IntegratorKind::VelocityVerlet);
+WEFT_SCALING(BM_Scaling_Verlet_double, scalingArgs, double, IntegratorKind::VelocityVerlet);
+WEFT_SCALING(BM_Scaling_Rk45_float, scalingArgs, float, IntegratorKind::Rk45);
+WEFT_SCALING(BM_Scaling_Rk45_double, scalingArgs, double, IntegratorKind::Rk45);
+WEFT_SCALING(BM_Scaling_Implicit_float, scalingArgsImplicit, float, IntegratorKind::ImplicitEuler);
+WEFT_SCALING(BM_Scaling_Implicit_double, scalingArgsImplicit, double, IntegratorKind::ImplicitEuler);
+WEFT_SCALING(BM_Scaling_Projective_float, scalingArgsProjective, float, IntegratorKind::Projective);
+WEFT_SCALING(BM_Scaling_Projective_double, scalingArgsProjective, double, IntegratorKind::Projective);
 
 // ---------------------------------------------------------------------------------------
 // BM_SimulatedSecond_*: what a simulated second costs on the 128^2 flag at each method's

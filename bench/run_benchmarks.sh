@@ -20,7 +20,8 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j2 --target weft_bench weft_cli
 mkdir -p bench/results
 out="bench/results/${name}.json"
-build/bin/weft_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
+# BM_Scaling_* (the cost-against-size sweep up to 1024^2) has its own script, run_scaling.sh.
+build/bin/weft_bench --benchmark_filter=-BM_Scaling_ --benchmark_repetitions=5 --benchmark_report_aggregates_only=true \
   --benchmark_min_time=0.2 --benchmark_out="$out" --benchmark_out_format=json "$@"
 rss="bench/results/${name}-memory.json"
 build/bin/weft run flag --size 256 --precision float --steps 50 --json > "$rss"
