@@ -9,6 +9,7 @@
 
 #include "core/text.hpp"
 #include "row_blocks.hpp"
+#include "weft/integrate/stability.hpp"
 
 namespace weft {
 
@@ -126,7 +127,7 @@ std::unique_ptr<Integrator<S>> makeIntegrator(IntegratorKind kind, const Model<S
     case IntegratorKind::VelocityVerlet:
       return detail::makeVelocityVerlet<S>(particleCount);
     case IntegratorKind::Rk45:
-      return detail::makeRk45<S>(particleCount, options);
+      return detail::makeRk45<S>(particleCount, options, maxAngularFrequency(model));
     case IntegratorKind::ImplicitEuler:
       return detail::makeImplicitEuler<S>(model, options);
     case IntegratorKind::Projective:

@@ -37,7 +37,7 @@ std::unique_ptr<Integrator<S>> makeRk4(Index n);
 template <class S>
 std::unique_ptr<Integrator<S>> makeVelocityVerlet(Index n);
 template <class S>
-std::unique_ptr<Integrator<S>> makeRk45(Index n, const IntegratorOptions& options);
+std::unique_ptr<Integrator<S>> makeRk45(Index n, const IntegratorOptions& options, double omegaMax);
 template <class S>
 std::unique_ptr<Integrator<S>> makeImplicitEuler(const Model<S>& model, const IntegratorOptions& options);
 template <class S>
