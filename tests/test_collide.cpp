@@ -236,14 +236,10 @@ MeshObstacle blade() {
   return m;
 }
 
-/// A free 24² cloth, 0.69 m, whose particle columns straddle the blade (x = -0.015 and
-/// 0.015 are the nearest: three thicknesses from it), dropped from `height` with `speed`
-/// downwards; the mean height after `seconds`, and the edge contacts.
+/// A free, soft 24² cloth of 3 cm cells (0.69 m), level at `height`: its particle columns
+/// sit at x, z = +-0.015 + 0.03 k around the origin.
 template <class S>
-std::pair<double, std::int64_t> clothOverBlade(bool edges, double height, double speed, double dt, double seconds,
-                                               int threads, State<S>* end = nullptr,
-                                               std::shared_ptr<const CollisionModel> model = nullptr,
-                                               const CollisionModel** used = nullptr) {
+ModelAndState<S> soft24Cloth(double height) {
   ClothGridSpec spec;
   spec.width = spec.height = 24;
   spec.spacing = 0.03;
@@ -254,7 +250,18 @@ std::pair<double, std::int64_t> clothOverBlade(bool edges, double height, double
   spec.bend = {2, 0.001};
   ModelBuilder<S> b;
   addClothGrid(b, spec);
-  ModelAndState<S> built = b.build();
+  return b.build();
+}
+
+/// A free 24² cloth, 0.69 m, whose particle columns straddle the blade (x = -0.015 and
+/// 0.015 are the nearest: three thicknesses from it), dropped from `height` with `speed`
+/// downwards; the mean height after `seconds`, and the edge contacts.
+template <class S>
+std::pair<double, std::int64_t> clothOverBlade(bool edges, double height, double speed, double dt, double seconds,
+                                               int threads, State<S>* end = nullptr,
+                                               std::shared_ptr<const CollisionModel> model = nullptr,
+                                               const CollisionModel** used = nullptr) {
+  ModelAndState<S> built = soft24Cloth<S>(height);
   built.state.v.col(1).setConstant(static_cast<S>(-speed));
   SimulationOptions o;
   o.integrator = IntegratorKind::SymplecticEuler;
@@ -323,17 +330,7 @@ MeshObstacle spike(double x, double z) {
 /// `seconds`, and the corner contacts.
 template <class S>
 std::pair<double, std::int64_t> clothOnSpike(bool corners, double seconds, int threads, State<S>* end = nullptr) {
-  ClothGridSpec spec;
-  spec.width = spec.height = 24;
-  spec.spacing = 0.03;
-  spec.origin = {-0.345, 0.05, -0.345};
-  spec.totalMass = 0.2;
-  spec.structural = {20, 0.01};
-  spec.shear = {10, 0.005};
-  spec.bend = {2, 0.001};
-  ModelBuilder<S> b;
-  addClothGrid(b, spec);
-  ModelAndState<S> built = b.build();
+  ModelAndState<S> built = soft24Cloth<S>(0.05);
   // The apex under the centroid of the first triangle of the cell [-0.015, 0.015]^2.
   const Triangles& tr = built.model.triangles();
   const auto at = [&](Index i, int a) { return static_cast<double>(built.state.x(i, a)); };
