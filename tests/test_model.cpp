@@ -575,6 +575,62 @@ TYPED_TEST(ModelTest, ParallelGridAxesAreRejected) {
   EXPECT_THROW(addClothGrid(b, spec), std::invalid_argument);
 }
 
+// A rope or grid the builder accepts also builds: what the precision cannot hold (a mass
+// whose inverse overflows, a coordinate whose square does, a stiffness beyond its range)
+// is refused before anything is added, naming the spec's field.
+TYPED_TEST(ModelTest, RopesAndGridsThePrecisionCannotHoldAreRefusedBeforeAnythingIsAdded) {
+  using S = TypeParam;
+  const bool single = sizeof(S) == sizeof(float);
+  const auto refused = [](auto add) {
+    ModelBuilder<S> b;
+    b.addParticle({0, 0, 0}, 1);
+    std::string what;
+    try {
+      add(b);
+    } catch (const std::invalid_argument& e) {
+      what = e.what();
+    }
+    EXPECT_EQ(b.particleCount(), 1) << what;
+    EXPECT_EQ(b.springCount(), 0) << what;
+    return what;
+  };
+  RopeSpec rope;
+  rope.totalMass = single ? 1e-40 : 1e-310;
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) {
+              addRope(b, rope);
+            }).find("RopeSpec particle mass (totalMass / particles) must be such that it and 1/mass are finite"),
+            std::string::npos);
+  rope = {};
+  rope.length = single ? 1e19 : 1e151;
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) {
+              addRope(b, rope);
+            }).find("RopeSpec extent (a coordinate of a particle) must be within"),
+            std::string::npos);
+  rope = {};
+  rope.structural.stiffness = std::numeric_limits<double>::infinity();
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) { addRope(b, rope); }).find("RopeSpec.structural.stiffness must be finite"),
+            std::string::npos);
+  ClothGridSpec grid = gridSpec(4, 4);
+  grid.shear.damping = single ? 1e39 : -1;
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) { addClothGrid(b, grid); }).find("ClothGridSpec.shear.damping must be"),
+            std::string::npos);
+  grid = gridSpec(4, 4);
+  grid.origin = {0, single ? -2e18 : -2e150, 0};
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) { addClothGrid(b, grid); }).find("ClothGridSpec extent"),
+            std::string::npos);
+  grid = gridSpec(70000, 70000);
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) {
+              addClothGrid(b, grid);
+            }).find("ClothGridSpec.width x height must be at most 268435455 particles, got 70000 x 70000"),
+            std::string::npos);
+  // Within the bounds, both build.
+  rope = {};
+  rope.totalMass = 1e-30;
+  ModelBuilder<S> b;
+  addRope(b, rope);
+  EXPECT_EQ(b.build().model.particleCount(), rope.particleCount);
+}
+
 // ---------------------------------------------------------------------------------------
 // Derived topology: checked against brute force
 // ---------------------------------------------------------------------------------------

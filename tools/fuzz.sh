@@ -6,7 +6,8 @@
 #   fuzz_scene        tests/fuzz/fuzz_scene.cpp: weft::parseScene on every input; small
 #                     accepted scenes are also assembled, built into a Simulation and stepped once.
 #   fuzz_mesh         tests/fuzz/fuzz_mesh.cpp: the first byte picks the format hint (byte % 4:
-#                     obj, ply, stl, 3ds), the rest goes to weft::loadMeshFromMemory; an accepted
+#                     obj, ply, stl, 3ds: assimp reads obj and 3ds, weft's own readers ply and
+#                     stl), the rest goes to weft::loadMeshFromMemory; an accepted
 #                     mesh is cleaned with cleanMesh and, when small, built into a cloth
 #                     (addClothMesh, ModelBuilder::build) in float and in double.
 #   fuzz_frame_cache  tests/fuzz/fuzz_frame_cache.cpp: every input is written to a file and

@@ -1,9 +1,14 @@
 #include "weft/io/mesh_import.hpp"
 
+#include <assimp/BaseImporter.h>
 #include <assimp/config.h>
+#include <assimp/importerdesc.h>
+#include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <assimp/IOStream.hpp>
+#include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
 #include <cerrno>
 #include <cmath>
@@ -17,6 +22,7 @@
 #include <vector>
 
 #include "io_text.hpp"
+#include "mesh_readers.hpp"
 
 namespace weft {
 
@@ -47,97 +53,126 @@ void checkReadable(const std::string& path) {
   if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
 }
 
-/// Whether `line` starts, after spaces and tabs, with the token `token` (followed by the
-/// line's end or white space), as assimp's PLY reader matches header keywords.
-bool startsWithToken(std::string_view line, std::string_view token) {
-  const size_t start = line.find_first_not_of(" \t");
-  if (start == std::string_view::npos || line.compare(start, token.size(), token) != 0) return false;
-  const size_t end = start + token.size();
-  return end == line.size() || line[end] == ' ' || line[end] == '\t';
-}
+/// One of weft's own readers (mesh_readers.hpp: PLY, STL) as an assimp loader. Importer
+/// takes assimp's loader for the format out of the importer and puts this one in, so that
+/// assimp's readers for these formats never see a file, while its post-processing
+/// (triangulation, node transforms) runs on what weft read as on any other format.
+class WeftLoader final : public Assimp::BaseImporter {
+ public:
+  using Sniff = bool (*)(std::string_view head, std::uint64_t size);
+  using Read = std::vector<io_detail::PolygonMesh> (*)(std::string_view bytes);
 
-/// Whether `line` starts, after spaces and tabs, with "ply" in any case followed by
-/// anything: all assimp's PLY reader asks of a file's first bytes ("ply\xfd" is PLY to it).
-bool startsLikePly(std::string_view line) {
-  const size_t start = line.find_first_not_of(" \t");
-  if (start == std::string_view::npos || line.size() - start < 3) return false;
-  const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; };
-  return lower(line[start]) == 'p' && lower(line[start + 1]) == 'l' && lower(line[start + 2]) == 'y';
-}
+  WeftLoader(const char* name, const char* extension, Sniff sniff, Read read)
+      : sniff_(sniff), read_(read), extension_(extension) {
+    desc_.mName = name;
+    desc_.mAuthor = "weft";
+    desc_.mMaintainer = "weft";
+    desc_.mComments = "weft's own reader (kernel/src/io/mesh_readers.cpp)";
+    desc_.mFlags = aiImporterFlags_SupportTextFlavour | aiImporterFlags_SupportBinaryFlavour;
+    desc_.mFileExtensions = extension_;
+  }
 
-/// Refuses a PLY file (its first line starting with "ply" in any case, which is what
-/// assimp's PLY reader requires) whose header has no "end_header" line: assimp 5.2's PLY
-/// reader never returns on such a header (an 89-byte file of a header's first six lines ran
-/// for as long as it was let; then "ply\xfd" as a first line; both found by
-/// tests/fuzz/fuzz_mesh.cpp).
-/// `nextLine(line)` yields the file's lines, split at '\n', and returns false at the end;
-/// '\r' and NUL also end a line for assimp, so they split a line here too.
-/// A header that does end must be text up to its end_header line (printable ASCII, tabs,
-/// line ends): assimp 5.2's PLY reader crashes on some headers with binary bytes in them
-/// (a segmentation fault inside libassimp, found by fuzz_mesh), and a real header is text.
-template <class NextLine>
-void checkPlyHeader(const std::string& path, NextLine nextLine) {
-  std::string_view text;
-  bool first = true;
-  std::int64_t lineNumber = 0, badLine = 0;
-  int badByte = -1;
-  while (nextLine(text)) {
-    ++lineNumber;
-    for (;;) {
-      const size_t end = text.find_first_of(std::string_view("\r\0", 2));
-      const std::string_view line = text.substr(0, end);
-      if (first) {
-        if (!startsLikePly(line)) return;  // not PLY: assimp decides
-        first = false;
-      } else if (startsWithToken(line, "end_header")) {
-        if (badByte >= 0) {
-          char hex[12];  // "0x" and up to 8 hex digits of an int, as far as the compiler can tell
-          std::snprintf(hex, sizeof hex, "0x%02x", badByte);
-          fail(path, std::string("PLY header has a byte that is not text (") + hex + " in line " +
-                         std::to_string(badLine) + "): the file is damaged or not a PLY file");
-        }
-        return;
-      }
-      // Not the end: remember the first byte that is not text (a NUL ending it counts).
-      const std::string_view scanned = end == std::string_view::npos ? line : text.substr(0, end + 1);
-      for (size_t k = 0; k < scanned.size() && badByte < 0; ++k) {
-        const unsigned char u = static_cast<unsigned char>(scanned[k]);
-        if ((u < 32 && u != '\t' && u != '\r') || u >= 127) {
-          badByte = u;
-          badLine = lineNumber;
-        }
-      }
-      if (end == std::string_view::npos) break;
-      text.remove_prefix(end + 1);
+  const char* extension() const { return extension_; }
+  /// The message of the last file this loader refused ("" if none).
+  const std::string& error() const { return error_; }
+
+  bool CanRead(const std::string& file, Assimp::IOSystem* io, bool /*checkSig*/) const override {
+    if (io == nullptr) return false;
+    std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
+    if (!stream) return false;
+    char head[256];
+    const size_t got = stream->Read(head, 1, sizeof head);
+    return sniff_(std::string_view(head, got), stream->FileSize());
+  }
+
+  const aiImporterDesc* GetInfo() const override { return &desc_; }
+
+ protected:
+  void InternReadFile(const std::string& file, aiScene* scene, Assimp::IOSystem* io) override {
+    error_.clear();
+    try {
+      std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
+      if (!stream) throw std::runtime_error("cannot open it");
+      std::string bytes(stream->FileSize(), '\0');
+      if (stream->Read(bytes.data(), 1, bytes.size()) != bytes.size()) throw std::runtime_error("cannot read it");
+      fill(*scene, read_(bytes));
+    } catch (const std::exception& e) {
+      error_ = e.what();
+      throw;  // assimp's ReadFile catches it and returns no scene
     }
   }
-  if (!first) fail(path, "PLY header has no end_header line (the file is truncated or not a PLY file)");
-}
 
-void checkPlyHeaderInMemory(const std::string& contents, const std::string& name) {
-  std::string_view rest(contents);
-  bool done = false;
-  checkPlyHeader(name, [&](std::string_view& line) {
-    if (done) return false;
-    const size_t end = rest.find('\n');
-    line = rest.substr(0, end);
-    if (end == std::string_view::npos)
-      done = true;
-    else
-      rest.remove_prefix(end + 1);
-    return true;
-  });
-}
+ private:
+  /// The meshes into `scene`, as an assimp reader leaves them: one node naming every mesh,
+  /// one default material.
+  static void fill(aiScene& scene, const std::vector<io_detail::PolygonMesh>& meshes) {
+    scene.mMaterials = new aiMaterial*[1];
+    scene.mMaterials[0] = new aiMaterial();
+    scene.mNumMaterials = 1;
+    scene.mRootNode = new aiNode();
+    scene.mMeshes = new aiMesh*[meshes.size()];
+    scene.mRootNode->mMeshes = new unsigned[meshes.size()];
+    for (const io_detail::PolygonMesh& in : meshes) {
+      aiMesh* out = new aiMesh();
+      scene.mMeshes[scene.mNumMeshes] = out;
+      scene.mRootNode->mMeshes[scene.mNumMeshes] = scene.mNumMeshes;
+      ++scene.mNumMeshes;
+      ++scene.mRootNode->mNumMeshes;
+      out->mVertices = new aiVector3D[in.vertexCount()];
+      out->mNumVertices = static_cast<unsigned>(in.vertexCount());
+      for (size_t v = 0; v < in.vertexCount(); ++v)
+        out->mVertices[v] = aiVector3D(in.xyz[3 * v], in.xyz[3 * v + 1], in.xyz[3 * v + 2]);
+      out->mFaces = new aiFace[in.faceSizes.size()];
+      out->mNumFaces = static_cast<unsigned>(in.faceSizes.size());
+      size_t next = 0;
+      for (size_t f = 0; f < in.faceSizes.size(); ++f) {
+        aiFace& face = out->mFaces[f];
+        face.mIndices = new unsigned[in.faceSizes[f]];
+        face.mNumIndices = in.faceSizes[f];
+        std::copy_n(in.indices.begin() + static_cast<std::ptrdiff_t>(next), in.faceSizes[f], face.mIndices);
+        next += in.faceSizes[f];
+      }
+    }
+  }
 
-void checkPlyHeaderInFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string buffer;
-  checkPlyHeader(path, [&](std::string_view& line) {
-    if (!std::getline(in, buffer)) return false;
-    line = buffer;
-    return true;
-  });
-}
+  Sniff sniff_;
+  Read read_;
+  const char* extension_;
+  aiImporterDesc desc_{};
+  std::string error_;
+};
+
+bool sniffPly(std::string_view head, std::uint64_t /*size*/) { return io_detail::startsLikePly(head); }
+
+/// An importer whose PLY and STL loaders are weft's (WeftLoader) instead of assimp's.
+struct Importer {
+  Assimp::Importer assimp;
+  WeftLoader* ply = nullptr;  // owned by `assimp` (it deletes its loaders)
+  WeftLoader* stl = nullptr;
+
+  Importer() {
+    // A file with bones but no meshes must not turn into assimp's generated bone geometry.
+    assimp.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
+    ply = replace(new WeftLoader("weft PLY reader", "ply", sniffPly, io_detail::readPly));
+    stl = replace(new WeftLoader("weft STL reader", "stl", io_detail::looksLikeStl, io_detail::readStl));
+  }
+
+  /// The message weft's own reader gave for the file it last refused ("" if none did).
+  std::string readerError() const { return !ply->error().empty() ? ply->error() : stl->error(); }
+
+ private:
+  WeftLoader* replace(WeftLoader* mine) {
+    std::unique_ptr<WeftLoader> owned(mine);
+    // Assimp's loaders for the extension are taken out (UnregisterLoader hands them back
+    // to the caller to delete).
+    while (Assimp::BaseImporter* theirs = assimp.GetImporter(mine->extension())) {
+      if (assimp.UnregisterLoader(theirs) != AI_SUCCESS) throw std::logic_error("assimp keeps its loader");
+      delete theirs;
+    }
+    assimp.RegisterLoader(owned.get());
+    return owned.release();
+  }
+};
 
 // No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
 constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_PreTransformVertices;
@@ -185,11 +220,6 @@ TriangleMesh collectTriangles(const aiScene* scene, const std::string& path) {
     fail(path, "no triangles: assimp read " + found + " and " + counted(mesh.vertices.size(), "vertex", "vertices"));
   }
   return mesh;
-}
-
-void configure(Assimp::Importer& importer) {
-  // A file with bones but no meshes must not turn into assimp's generated bone geometry.
-  importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
 }
 
 /// What assimp's post-processing (triangulation, pre-transformed vertices) assumes of the
@@ -248,8 +278,13 @@ void checkRawScene(aiScene& scene, const std::string& path) {
 
 /// The scene assimp's reader returned (`raw`, null when it refused the file), checked by
 /// checkRawScene and then triangulated and flattened (kImportFlags).
-const aiScene* postProcessed(Assimp::Importer& importer, const aiScene* raw, const std::string& path) {
-  if (raw == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+const aiScene* postProcessed(Importer& reader, const aiScene* raw, const std::string& path) {
+  Assimp::Importer& importer = reader.assimp;
+  if (raw == nullptr) {
+    const std::string ours = reader.readerError();
+    if (!ours.empty()) fail(path, ours);
+    fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
+  }
   // The importer owns the scene and hands it out as const; it is not a const object, and
   // ApplyPostProcessing below rewrites it in place anyway.
   checkRawScene(const_cast<aiScene&>(*raw), path);
@@ -277,20 +312,16 @@ void checkCleanOptions(const MeshCleanOptions& options) {
 
 TriangleMesh loadMesh(const std::string& path) {
   checkReadable(path);
-  checkPlyHeaderInFile(path);
-  Assimp::Importer importer;
-  configure(importer);
-  return collectTriangles(postProcessed(importer, importer.ReadFile(path, 0), path), path);
+  Importer importer;
+  return collectTriangles(postProcessed(importer, importer.assimp.ReadFile(path, 0), path), path);
 }
 
 TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
   if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
-  checkPlyHeaderInMemory(contents, name);
   const std::string extension = std::filesystem::path(name).extension().string();
   const std::string hint = extension.empty() ? std::string() : extension.substr(1);
-  Assimp::Importer importer;
-  configure(importer);
-  const aiScene* raw = importer.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
+  Importer importer;
+  const aiScene* raw = importer.assimp.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
   return collectTriangles(postProcessed(importer, raw, name), name);
 }
 

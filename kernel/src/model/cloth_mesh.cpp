@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/text.hpp"
+#include "precision_limits.hpp"
 
 namespace weft {
 
@@ -23,11 +24,16 @@ using detail::number;
   detail::rejectField(std::string(kWhere) + ": " + field, value, rule);
 }
 
+/// A spring material, also within the range of the builder's precision S (so that what
+/// addClothMesh accepts, ModelBuilder<S>::build() accepts too).
+template <class S>
 void checkMaterial(const char* name, const SpringMaterial& m) {
-  if (!(std::isfinite(m.stiffness) && m.stiffness >= 0))
-    reject(std::string("ClothMeshSpec.") + name + ".stiffness", m.stiffness, "finite and >= 0 (N/m)");
-  if (!(std::isfinite(m.damping) && m.damping >= 0))
-    reject(std::string("ClothMeshSpec.") + name + ".damping", m.damping, "finite and >= 0 (N s/m)");
+  using Limits = detail::PrecisionLimits<S>;
+  const std::string range = std::string(" and within the range of ") + Limits::kName + " precision";
+  if (!(std::isfinite(m.stiffness) && m.stiffness >= 0 && Limits::representable(m.stiffness)))
+    reject(std::string("ClothMeshSpec.") + name + ".stiffness", m.stiffness, "finite and >= 0 (N/m)" + range);
+  if (!(std::isfinite(m.damping) && m.damping >= 0 && Limits::representable(m.damping)))
+    reject(std::string("ClothMeshSpec.") + name + ".damping", m.damping, "finite and >= 0 (N s/m)" + range);
 }
 
 std::uint64_t edgeKey(Index a, Index b) {
@@ -48,8 +54,9 @@ ClothMeshStats addClothMesh(ModelBuilder<S>& builder, const TriangleMesh& mesh, 
   if (!std::isfinite(spec.translate.x)) reject("ClothMeshSpec.translate.x", spec.translate.x, "finite (m)");
   if (!std::isfinite(spec.translate.y)) reject("ClothMeshSpec.translate.y", spec.translate.y, "finite (m)");
   if (!std::isfinite(spec.translate.z)) reject("ClothMeshSpec.translate.z", spec.translate.z, "finite (m)");
-  checkMaterial("structural", spec.structural);
-  if (spec.bendSprings) checkMaterial("bend", spec.bend);
+  checkMaterial<S>("structural", spec.structural);
+  if (spec.bendSprings) checkMaterial<S>("bend", spec.bend);
+  using Limits = detail::PrecisionLimits<S>;
 
   // --- The mesh.
   const Index first = builder.particleCount();
@@ -75,6 +82,10 @@ ClothMeshStats addClothMesh(ModelBuilder<S>& builder, const TriangleMesh& mesh, 
       if (!std::isfinite(in[k])) reject(field, in[k], "finite (m)");
       out[k] = spec.scale * in[k] + shift[k];
       if (!std::isfinite(out[k])) reject(field + " scaled and translated", out[k], "finite (m)");
+      if (!Limits::coordinate(out[k]))
+        reject(field + (spec.scale == 1 && shift[k] == 0 ? "" : " scaled and translated"), out[k],
+               std::string("within +-") + number(Limits::kFarthest) + " m in " + Limits::kName +
+                   " precision (the squares of distances between particles must stay finite)");
     }
     p[i] = {out[0], out[1], out[2]};
   }
@@ -116,6 +127,10 @@ ClothMeshStats addClothMesh(ModelBuilder<S>& builder, const TriangleMesh& mesh, 
     mass[i] = density * vertexArea[i];
     if (!(std::isfinite(mass[i]) && mass[i] > 0))
       reject("mass of mesh vertices[" + std::to_string(i) + "] (density * area / 3)", mass[i], "finite and > 0 (kg)");
+    if (!(Limits::representable(mass[i]) && Limits::invertibleMass(mass[i])))
+      reject("mass of mesh vertices[" + std::to_string(i) + "] (density * area / 3)", mass[i],
+             std::string("such that it and 1/mass are finite in ") + Limits::kName +
+                 " precision (the triangles around it are too small or too large for it)");
   }
 
   // --- Edges: (key, opposite corner) per triangle side, sorted; one run per unique edge.

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/text.hpp"
+#include "precision_limits.hpp"
 
 namespace weft {
 
@@ -181,21 +182,19 @@ ModelAndState<S> ModelBuilder<S>::build() {
 
   // Values must be representable in S (converting an out-of-range double to float is
   // undefined behaviour, and an infinite position is no position).
-  const char* precision = sizeof(S) == sizeof(float) ? "float" : "double";
+  using Limits = detail::PrecisionLimits<S>;
+  const char* precision = Limits::kName;
   const auto scalar = [&](double value, const char* field, Index i) {
-    if (!(std::abs(value) <= static_cast<double>(std::numeric_limits<S>::max())))
+    if (!Limits::representable(value))
       reject("ModelBuilder::build", indexed(field, i), value,
              std::string("within the range of ") + precision +
-                 " precision (|value| <= " + detail::number(static_cast<double>(std::numeric_limits<S>::max())) + ")");
+                 " precision (|value| <= " + detail::number(Limits::kLargest) + ")");
     return static_cast<S>(value);
   };
-  // Positions also keep the squares of their differences finite (spring lengths, areas,
-  // distances): |coordinate| <= 1e18 m in float, 1e150 m in double (below sqrt(max) / 4).
-  const double farthest = sizeof(S) == sizeof(float) ? 1e18 : 1e150;
   const auto coordinate = [&](double value, const char* field, Index i) {
-    if (!(std::abs(value) <= farthest))
+    if (!Limits::coordinate(value))
       reject("ModelBuilder::build", indexed(field, i), value,
-             std::string("within +-") + detail::number(farthest) + " m in " + precision +
+             std::string("within +-") + detail::number(Limits::kFarthest) + " m in " + precision +
                  " precision (the squares of distances between particles must stay finite)");
     return static_cast<S>(value);
   };
@@ -204,7 +203,7 @@ ModelAndState<S> ModelBuilder<S>::build() {
   // refused build leaves the builder untouched.
   for (Index i = 0; i < n; ++i) {
     (void)scalar(mass_[i], "mass of particle", i);
-    if (!pinned_[i] && !(1.0 / mass_[i] <= static_cast<double>(std::numeric_limits<S>::max())))
+    if (!pinned_[i] && !Limits::invertibleMass(mass_[i]))
       reject("ModelBuilder::build", indexed("mass of particle", i), mass_[i],
              "large enough that 1/mass is finite in the chosen precision");
     (void)coordinate(px_[i], "position.x of particle", i);

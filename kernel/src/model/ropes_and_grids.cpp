@@ -1,8 +1,14 @@
 #include "weft/model/ropes_and_grids.hpp"
 
 #include <cmath>
+#include <initializer_list>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
+
+#include "core/text.hpp"
+#include "precision_limits.hpp"
 
 namespace weft {
 
@@ -18,6 +24,42 @@ Vec3d normalised(const Vec3d& v, const char* field) {
 void requirePositive(const char* field, double value) {
   if (!(std::isfinite(value) && value > 0))
     throw std::invalid_argument(std::string(field) + " must be finite and > 0, got " + std::to_string(value));
+}
+
+/// What ModelBuilder<S>::build() will require of the values an object adds, checked before
+/// anything is added (so that an object these builders accept also builds, and a refused
+/// one leaves the builder as it was): each particle's mass and its inverse in S, the
+/// corners of the object's bounding box within the precision's coordinate bound, and the
+/// spring materials within S's range (the grid layout also holds them converted to S).
+template <class S>
+void checkPrecision(const std::string& spec, double mass, const Vec3d& from, const Vec3d& to,
+                    std::initializer_list<std::pair<const char*, const SpringMaterial*>> materials) {
+  using Limits = detail::PrecisionLimits<S>;
+  const std::string in = std::string(" in ") + Limits::kName + " precision";
+  if (!(Limits::representable(mass) && Limits::invertibleMass(mass)))
+    detail::rejectField(spec + " particle mass (totalMass / particles)", mass,
+                        "such that it and 1/mass are finite" + in);
+  for (const Vec3d& p : {from, to})
+    for (const double c : {p.x, p.y, p.z})
+      if (!Limits::coordinate(c))
+        detail::rejectField(spec + " extent (a coordinate of a particle)", c,
+                            "within +-" + detail::number(Limits::kFarthest) + " m" + in);
+  for (const auto& entry : materials) {
+    const char* name = entry.first;
+    const SpringMaterial* material = entry.second;
+    if (material == nullptr) continue;
+    const auto check = [&](const char* field, double value, const char* unit) {
+      if (!(std::isfinite(value) && value >= 0 && Limits::representable(value)))
+        detail::rejectField(spec + "." + name + "." + field, value,
+                            std::string("finite and >= 0 (") + unit + ") and within the range of" + in);
+    };
+    check("stiffness", material->stiffness, "N/m");
+    check("damping", material->damping, "N s/m");
+  }
+}
+
+Vec3d along(const Vec3d& origin, const Vec3d& d, double t) {
+  return {origin.x + t * d.x, origin.y + t * d.y, origin.z + t * d.z};
 }
 
 }  // namespace
@@ -42,6 +84,8 @@ void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
   const Index first = builder.particleCount();
   const double step = spec.length / static_cast<double>(n - 1);
   const double m = spec.totalMass / static_cast<double>(n);
+  checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, spec.length),
+                    {{"structural", &spec.structural}, {"bend", spec.bendSprings ? &spec.bend : nullptr}});
   for (Index i = 0; i < n; ++i) {
     const double t = step * static_cast<double>(i);
     builder.addParticle({spec.origin.x + t * d.x, spec.origin.y + t * d.y, spec.origin.z + t * d.z}, m);
@@ -70,8 +114,23 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
                                 std::to_string(spec.rowAxis.z) + ") and (" + std::to_string(spec.columnAxis.x) + ", " +
                                 std::to_string(spec.columnAxis.y) + ", " + std::to_string(spec.columnAxis.z) + ")");
   const Index W = spec.width, H = spec.height;
+  // Every particle, spring and triangle index must fit an Index (about 3.5 springs a particle).
+  if (static_cast<long long>(W) * H > std::numeric_limits<Index>::max() / 8)
+    throw std::invalid_argument("ClothGridSpec.width x height must be at most " +
+                                std::to_string(std::numeric_limits<Index>::max() / 8) + " particles, got " +
+                                std::to_string(W) + " x " + std::to_string(H));
   const Index first = builder.particleCount();  // the grid layout is recorded only when 0
   const double m = spec.totalMass / static_cast<double>(W * H);
+  {
+    // The grid's far corner, and the two others: the bounding box's extremes are among them.
+    const double a = spec.spacing * static_cast<double>(W - 1), b = spec.spacing * static_cast<double>(H - 1);
+    const Vec3d corner = along(along(spec.origin, u, a), w, b);
+    checkPrecision<S>("ClothGridSpec", m, spec.origin, corner,
+                      {{"structural", &spec.structural},
+                       {"shear", spec.shearSprings ? &spec.shear : nullptr},
+                       {"bend", spec.bendSprings ? &spec.bend : nullptr}});
+    checkPrecision<S>("ClothGridSpec", m, along(spec.origin, u, a), along(spec.origin, w, b), {});
+  }
   // Exact counts: structural (two families), shear (two), bend (two), two triangles a cell.
   const Index springs = (W - 1) * H + W * (H - 1) + (spec.shearSprings ? 2 * (W - 1) * (H - 1) : 0) +
                         (spec.bendSprings ? (W - 2) * H + W * (H - 2) : 0);

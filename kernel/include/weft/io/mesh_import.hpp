@@ -3,7 +3,12 @@
 // Design note
 // -----------
 // loadMesh reads any format assimp reads (OBJ, 3DS — the original design's format — PLY,
-// STL, glTF, Collada, FBX, ...) into one TriangleMesh: assimp triangulates polygons
+// STL, glTF, Collada, FBX, ...) into one TriangleMesh. PLY (ASCII and binary) and STL
+// (ASCII and binary) are read by weft's own readers, which take the place of assimp's for
+// those formats (assimp 5.2's PLY reader hangs, crashes or allocates gigabytes on damaged
+// files): they check every count a file declares against the bytes that follow, and name
+// the header line, element or facet where a damaged file goes wrong. Then, for every
+// format, assimp triangulates polygons
 // (aiProcess_Triangulate) and bakes the node transforms into the vertices and flattens
 // the hierarchy (aiProcess_PreTransformVertices, so instanced meshes appear once per
 // instance); weft then concatenates every mesh of the scene and keeps the faces with
@@ -19,9 +24,9 @@
 //
 // Errors are std::runtime_error messages that start with "mesh file '<path>': ": the
 // file is missing or cannot be opened (with strerror), is a directory, is empty, assimp
-// cannot read it (with assimp's error string; a PLY file whose header has no end_header
-// line is refused before assimp sees it, since assimp 5.2 would never return on it), or it
-// has no triangles (with the numbers of points and lines it has instead). loadCleanMesh reports what cleanMesh finds
+// cannot read it (with assimp's error string, or for PLY and STL weft's reader's own
+// message: "PLY header line 3: ...", "PLY face 7 corner 2: vertex index must be ...",
+// "ASCII STL line 12: expected 'endloop', got ..."), or it has no triangles (with the numbers of points and lines it has instead). loadCleanMesh reports what cleanMesh finds
 // wrong with the file's contents (a coordinate that is not finite, no triangle left) the same way: std::runtime_error,
 // the file name in front of cleanMesh's message. A bad MeshCleanOptions is the caller's error: std::invalid_argument,
 // before the file is read.
