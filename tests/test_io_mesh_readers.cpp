@@ -121,6 +121,14 @@ TEST(PlyReader, AsciiAndBothBinaryByteOrdersReadTheSameMesh) {
   expectTheSixVertices(loadMeshFromMemory(binaryPly(true), "MESH.PLY"), "binary big endian, upper-case extension");
   // No extension (or one assimp does not know): the file's first line says it is PLY.
   expectTheSixVertices(loadMeshFromMemory(binaryPly(false), "mesh"), "binary, no extension");
+  // A comment in UTF-8 (exporters write user and file names there).
+  std::string accented = asciiPly();
+  accented.insert(accented.find("comment ") + 8,
+                  "cr\xc3\xa9\xc3\xa9 par Ren\xc3\xa9"
+                  "e, ");
+  expectTheSixVertices(loadMeshFromMemory(accented, "mesh.ply"), "ascii, UTF-8 comment");
+  accented.replace(accented.find("element vertex"), 7, "\xc3\xa9lement");
+  EXPECT_THAT(refusal(accented, "mesh.ply"), HasSubstr("PLY header has a byte that is not text (0xc3 in line 5)"));
   const std::string path = ::testing::TempDir() + "weft_reader_mesh.ply";
   std::ofstream(path, std::ios::binary) << binaryPly(true);
   expectTheSixVertices(loadMesh(path), "binary big endian, from a file");

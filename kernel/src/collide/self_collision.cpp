@@ -85,19 +85,32 @@ V lerp(const V x[2], double s) { return x[0] + s * (x[1] - x[0]); }
 
 /// Conservative advancement (see the design note). eval(s, gap, weights) returns the
 /// distance at s, the vector between the closest points (towards the first primitive) and
-/// the weights; fallback(s, normal) gives a normal where the distance is zero.
+/// the weights; fallback(s, normal) gives a normal where the distance is zero. `lipschitz2`
+/// is the square of the Lipschitz bound's core (lipschitzSquared): its square root is taken
+/// only when a step is needed.
 template <class Eval, class Fallback>
-PrimitiveContact advance(Eval&& eval, Fallback&& fallback, double lipschitz, double threshold, double start) {
+PrimitiveContact advance(Eval&& eval, Fallback&& fallback, double lipschitz2, double threshold, double start) {
   PrimitiveContact c;
   double s = std::clamp(start, 0.0, 1.0);
   V gap;
   double d = 0;
   bool found = false;
+  double lipschitz = -1;  // not taken yet
   for (int k = 0; k < kMaxSteps; ++k) {
     d = eval(s, gap, c.weights);
     if (d < threshold) {
       found = true;
       break;
+    }
+    if (lipschitz < 0) {
+      // Most queries are misses whose first step already passes s = 1: when the margin
+      // (d - threshold / 2) beats (1 - s) times the bound by a relative 4e-6, far more than
+      // the rounding of the step below, that step would end at or past 1, so the answer is
+      // the same without the square root and the division (a profile put them on the
+      // critical path of every query).
+      const double margin = d - 0.5 * threshold, rest = 1 - s;
+      if (margin >= 0 && margin * margin >= rest * rest * lipschitz2 * (1 + 4e-6)) return c;
+      lipschitz = std::sqrt(lipschitz2) * (1 + 1e-9);
     }
     if (!(lipschitz > 0)) return c;
     const double next = s + (d - 0.5 * threshold) / lipschitz;
@@ -121,13 +134,14 @@ PrimitiveContact advance(Eval&& eval, Fallback&& fallback, double lipschitz, dou
   return c;
 }
 
-/// The Lipschitz bound: the largest relative displacement between a vertex of the first set
-/// and one of the second, enlarged by a relative 1e-9 for rounding.
-double lipschitz(std::initializer_list<const V*> first, std::initializer_list<const V*> second) {
+/// The square of the Lipschitz bound's core: the largest squared relative displacement
+/// between a vertex of the first set and one of the second (the bound is its square root,
+/// enlarged by a relative 1e-9 for rounding).
+double lipschitzSquared(std::initializer_list<const V*> first, std::initializer_list<const V*> second) {
   double L2 = 0;
   for (const V* f : first)
     for (const V* g : second) L2 = std::max(L2, ((f[1] - f[0]) - (g[1] - g[0])).squaredNorm());
-  return std::sqrt(L2) * (1 + 1e-9);
+  return L2;
 }
 
 /// Orients `n` (unit or zero) so that it points from the second primitive to the first at
@@ -168,7 +182,7 @@ PrimitiveContact vertexTriangleContact(const V p[2], const V a[2], const V b[2],
     const V motion = (p[1] - p[0]) - (bary[0] * (a[1] - a[0]) + bary[1] * (b[1] - b[0]) + bary[2] * (c[1] - c[0]));
     orient(n, gap0, motion);
   };
-  return advance(eval, fallback, lipschitz({p}, {a, b, c}), threshold, start);
+  return advance(eval, fallback, lipschitzSquared({p}, {a, b, c}), threshold, start);
 }
 
 PrimitiveContact edgeEdgeContact(const V p[2], const V q[2], const V a[2], const V b[2], double threshold,
@@ -200,7 +214,7 @@ PrimitiveContact edgeEdgeContact(const V p[2], const V q[2], const V a[2], const
     const V motion = ((1 - u) * (p[1] - p[0]) + u * (q[1] - q[0])) - ((1 - v) * (a[1] - a[0]) + v * (b[1] - b[0]));
     orient(n, c1 - c2, motion);
   };
-  return advance(eval, fallback, lipschitz({p, q}, {a, b}), threshold, start);
+  return advance(eval, fallback, lipschitzSquared({p, q}, {a, b}), threshold, start);
 }
 
 template <class S>

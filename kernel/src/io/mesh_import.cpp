@@ -91,11 +91,15 @@ class WeftLoader final : public Assimp::BaseImporter {
   void InternReadFile(const std::string& file, aiScene* scene, Assimp::IOSystem* io) override {
     error_.clear();
     try {
-      std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
-      if (!stream) throw std::runtime_error("cannot open it");
-      std::string bytes(stream->FileSize(), '\0');
-      if (stream->Read(bytes.data(), 1, bytes.size()) != bytes.size()) throw std::runtime_error("cannot read it");
-      fill(*scene, read_(bytes));
+      std::vector<io_detail::PolygonMesh> meshes;
+      {  // the file's bytes are let go before the scene is made
+        std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
+        if (!stream) throw std::runtime_error("cannot open it");
+        std::string bytes(stream->FileSize(), '\0');
+        if (stream->Read(bytes.data(), 1, bytes.size()) != bytes.size()) throw std::runtime_error("cannot read it");
+        meshes = read_(bytes);
+      }
+      fill(*scene, std::move(meshes));
     } catch (const std::exception& e) {
       error_ = e.what();
       throw;  // assimp's ReadFile catches it and returns no scene
@@ -105,14 +109,14 @@ class WeftLoader final : public Assimp::BaseImporter {
  private:
   /// The meshes into `scene`, as an assimp reader leaves them: one node naming every mesh,
   /// one default material.
-  static void fill(aiScene& scene, const std::vector<io_detail::PolygonMesh>& meshes) {
+  static void fill(aiScene& scene, std::vector<io_detail::PolygonMesh> meshes) {
     scene.mMaterials = new aiMaterial*[1];
     scene.mMaterials[0] = new aiMaterial();
     scene.mNumMaterials = 1;
     scene.mRootNode = new aiNode();
     scene.mMeshes = new aiMesh*[meshes.size()];
     scene.mRootNode->mMeshes = new unsigned[meshes.size()];
-    for (const io_detail::PolygonMesh& in : meshes) {
+    for (io_detail::PolygonMesh& in : meshes) {
       aiMesh* out = new aiMesh();
       scene.mMeshes[scene.mNumMeshes] = out;
       scene.mRootNode->mMeshes[scene.mNumMeshes] = scene.mNumMeshes;
@@ -132,6 +136,7 @@ class WeftLoader final : public Assimp::BaseImporter {
         std::copy_n(in.indices.begin() + static_cast<std::ptrdiff_t>(next), in.faceSizes[f], face.mIndices);
         next += in.faceSizes[f];
       }
+      in = {};  // each mesh's copy is let go as soon as assimp's is made
     }
   }
 

@@ -180,9 +180,14 @@ Header readPlyHeader(std::string_view bytes) {
     refuse("PLY header has no end_header line (the file is truncated or not a PLY file)");
   for (size_t n = 0; n < lines.size(); ++n) {
     int bad = endsWithNul[n] ? 0 : -1;
+    // Comments may be UTF-8 (a name with an accent); keywords, types and counts are ASCII.
+    const size_t start = lines[n].find_first_not_of(" \t");
+    const std::string_view first = start == std::string_view::npos ? std::string_view() : lines[n].substr(start);
+    const bool comment = first.substr(0, 8) == "comment " || first.substr(0, 8) == "comment\t" ||
+                         first.substr(0, 9) == "obj_info " || first.substr(0, 9) == "obj_info\t";
     for (const char c : lines[n]) {
       const unsigned char u = static_cast<unsigned char>(c);
-      if ((u < 32 && u != '\t') || u >= 127) {
+      if ((u < 32 && u != '\t') || u == 127 || (u > 127 && !comment)) {
         bad = u;
         break;
       }
