@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 #include "bvh_internal.hpp"
@@ -141,6 +142,18 @@ void TriangleBvh<S>::build(const Vec3Array<S>& x, const Triangles& triangles, co
   // 4. Hierarchy; 5. boxes.
   buildHierarchy(exec);
   refit(x, exec);
+}
+
+template <class S>
+void TriangleBvh<S>::releaseBuildBuffers() {
+  const auto release = [](auto& v) { std::remove_reference_t<decltype(v)>().swap(v); };
+  release(keys_);
+  release(keysSwap_);
+  release(codes_);
+  release(centroids_);
+  release(histogram_);
+  release(blockBounds_);
+  release(blockBad_);
 }
 
 template <class S>

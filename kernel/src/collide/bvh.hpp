@@ -179,6 +179,11 @@ class TriangleBvh {
   /// [0, x.rows())), boxes inflated by `margin` (m, finite, >= 0). std::invalid_argument
   /// names a bad index or margin.
   void build(const Vec3Array<S>& x, const Triangles& triangles, const Executor& exec, double margin = 0);
+  /// Frees the buffers only build() uses (sort keys, Morton codes, centroids: about 32
+  /// bytes a triangle), for a tree built once and then queried, such as the end-of-run
+  /// intersection check; refits and queries do not need them, the next build() makes them
+  /// again.
+  void releaseBuildBuffers();
   /// Recomputes every box for new positions of the same vertices (same topology).
   void refit(const Vec3Array<S>& x, const Executor& exec);
   /// Boxes covering each triangle at x0 and at x1 (the start and end of a step), inflated by the margin.

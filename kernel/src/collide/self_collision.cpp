@@ -570,6 +570,7 @@ std::int64_t countSelfIntersections(const Model<S>& model, const Vec3Array<S>& x
   if (model.triangleCount() < 2) return 0;
   TriangleBvh<S> bvh;
   bvh.build(x, model.triangles(), exec, 0);
+  bvh.releaseBuildBuffers();  // built once: its query's buffers can take their place
   std::vector<TrianglePair> pairs;
   BvhPairScratch scratch;
   bvh.selfIntersectingPairs(x, pairs, scratch, exec);
