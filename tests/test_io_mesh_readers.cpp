@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <cctype>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -139,6 +140,7 @@ TEST(PlyReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
   const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz;
   const std::string faces = "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   const std::string body = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const std::string binaryHead = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n" + xyz + faces;
   ASSERT_EQ(loadMeshFromMemory(head + faces + body, "good.ply").triangles.size(), 1u);
   const struct {
     std::string contents, expected;
@@ -189,9 +191,22 @@ TEST(PlyReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
        "PLY header line 7: 1 'face' entries need at least 1 bytes each, but only 0 bytes of the file are left"},
       {"ply\nformat binary_little_endian 1.0\nelement vertex 3\n" + xyz + "end_header\n" + std::string(35, '\0'),
        "PLY header line 3: 3 'vertex' entries need at least 12 bytes each, but only 35 bytes"},
-      {"ply\nformat binary_little_endian 1.0\nelement vertex 3\n" + xyz + faces + std::string(36, '\0') +
-           std::string("\xff\xff\xff\x7f", 4),
-       "PLY file ends before entry 0 of face 0 property 'vertex_indices' (byte 37 of the body)"},
+      {binaryHead + std::string(36, '\0') + std::string("\xff\xff\xff\x7f", 4),
+       "PLY file ends before entry 0 of face 0 property 'vertex_indices' (byte " +
+           std::to_string(binaryHead.size() + 37) + " of the file)"},
+      // Counts and indices are whole numbers a double holds exactly.
+      {head + faces + "0 0 0\n1 0 0\n0 1 0\nnan 0 1 2\n",
+       "PLY line 13: the count of face 0 property 'vertex_indices' must be a "
+       "whole number, got 'nan'"},
+      {head + faces + "0 0 0\n1 0 0\n0 1 0\n3 0 inf 2\n",
+       "PLY line 13: entry 1 of face 0 property 'vertex_indices' must be a "
+       "whole number, got 'inf'"},
+      {head + faces + "0 0 0\n1 0 0\n0 1 0\n3 0 1e19 2\n",
+       "PLY line 13: entry 1 of face 0 property 'vertex_indices' must be a "
+       "whole number, got '1e19'"},
+      {head + faces + "0 0 0\n1 0 0\n0 1 0\n1e19 0 1 2\n",
+       "PLY line 13: the count of face 0 property 'vertex_indices' must be a "
+       "whole number, got '1e19'"},
   };
   for (const auto& c : cases)
     EXPECT_THAT(refusal(c.contents, "bad.ply"), HasSubstr("mesh file 'bad.ply': " + c.expected));
@@ -214,6 +229,17 @@ TEST(PlyReader, FuzzedFileThatMadeAssimpAllocateGigabytesIsRefused) {
   const std::string input((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   ASSERT_EQ(input.substr(0, 4), "1ply");
   EXPECT_THAT(refusal(input.substr(1), "fuzzed.ply"), HasSubstr("mesh file 'fuzzed.ply': not a PLY file"));
+  // Its body's 89-digit coordinate in a file whose header is whole: read as a float beyond
+  // range (an infinity), then refused by the cleaning, naming the vertex.
+  const std::string longNumber(89, '8');
+  const std::string file =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 " +
+      longNumber + "\n1 0 0\n0 1 0\n3 0 1 2\n";
+  EXPECT_TRUE(std::isinf(loadMeshFromMemory(file, "long.ply").vertices[0].z));
+  EXPECT_THAT(thrownMessage<std::runtime_error>([&] { (void)loadCleanMeshFromMemory(file, "long.ply"); }),
+              AllOf(HasSubstr("mesh file 'long.ply': "), HasSubstr("vertices[0].z must be finite, got inf")));
 }
 
 // STL: three vertices per facet, in order (welding is cleanMesh's job).
@@ -306,6 +332,28 @@ TEST(StlReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
   };
   for (const auto& c : cases)
     EXPECT_THAT(refusal(c.contents, "bad.stl"), HasSubstr("mesh file 'bad.stl': " + c.expected));
+}
+
+// A PLY or STL file whose name has no extension, or one assimp does not know, is read by
+// weft's reader when its first bytes say which it is (assimp would ask its other loaders
+// first: a PLY whose comment says "Blender" must not go to its Blender loader).
+TEST(PlyReader, FilesUnderOtherNamesAreReadByWhatTheirBytesSay) {
+  std::string blender = asciiPly();
+  blender.insert(blender.find("comment "), "comment Created by Blender 4.2 - www.blender.org\n");
+  for (const char* name : {"scan", "scan.txt", "scan.data"}) {
+    expectTheSixVertices(loadMeshFromMemory(blender, name), name);
+    const std::string path = ::testing::TempDir() + "weft_reader_" + name;
+    std::ofstream(path, std::ios::binary) << blender;
+    expectTheSixVertices(loadMesh(path), path);
+  }
+  const std::string stl = "solid part\n" + asciiFacets(0, 3) + "endsolid part\n";
+  expectTheThreeFacets(loadMeshFromMemory(stl, "part.txt"), "ascii STL named .txt");
+  const std::string path = ::testing::TempDir() + "weft_reader_part";
+  std::ofstream(path, std::ios::binary) << stl;
+  expectTheThreeFacets(loadMesh(path), "ascii STL without extension, from a file");
+  // A header that never ends, a megabyte long: refused, holding nothing per line.
+  EXPECT_THAT(refusal("ply\n" + std::string(1 << 20, '\n'), "long.ply"),
+              HasSubstr("PLY header has no end_header line"));
 }
 
 /// An input of tests/fuzz/fuzz_mesh.cpp kept in tests/fuzz/regressions/mesh/, without its

@@ -108,8 +108,13 @@ PrimitiveContact advance(Eval&& eval, Fallback&& fallback, double lipschitz2, do
       // the rounding of the step below, that step would end at or past 1, so the answer is
       // the same without the square root and the division (a profile put them on the
       // critical path of every query).
+      // (Only where the squares are normal finite numbers: underflow or overflow would make
+      // the relative margin meaningless, and the exact step below decides.)
       const double margin = d - 0.5 * threshold, rest = 1 - s;
-      if (margin >= 0 && margin * margin >= rest * rest * lipschitz2 * (1 + 4e-6)) return c;
+      const double bound = rest * rest * lipschitz2 * (1 + 4e-6);
+      if (margin >= 0 && bound < std::numeric_limits<double>::infinity() &&
+          (bound >= std::numeric_limits<double>::min() || lipschitz2 == 0 || rest == 0) && margin * margin >= bound)
+        return c;
       lipschitz = std::sqrt(lipschitz2) * (1 + 1e-9);
     }
     if (!(lipschitz > 0)) return c;

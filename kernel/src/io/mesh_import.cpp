@@ -16,6 +16,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string_view>
@@ -174,10 +175,22 @@ struct Importer {
       if (assimp.UnregisterLoader(theirs) != AI_SUCCESS) throw std::logic_error("assimp keeps its loader");
       delete theirs;
     }
-    assimp.RegisterLoader(owned.get());
+    if (assimp.RegisterLoader(owned.get()) != AI_SUCCESS) throw std::logic_error("assimp refused weft's loader");
     return owned.release();
   }
 };
+
+/// The format hint for a file whose name's extension assimp does not know (or that has
+/// none) but whose first bytes say PLY or STL: "ply" or "stl", so that weft's reader reads
+/// it (assimp would otherwise ask its other loaders first, in its own order, whether the
+/// bytes are theirs); "" otherwise, and for every name with a known extension.
+std::string sniffedHint(const Importer& importer, const std::string& name, std::string_view head, std::uint64_t size) {
+  const std::string extension = std::filesystem::path(name).extension().string();
+  if (!extension.empty() && importer.assimp.IsExtensionSupported(extension)) return {};
+  if (io_detail::startsLikePly(head)) return "ply";
+  if (io_detail::looksLikeStl(head, size)) return "stl";
+  return {};
+}
 
 // No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
 constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_PreTransformVertices;
@@ -318,14 +331,30 @@ void checkCleanOptions(const MeshCleanOptions& options) {
 TriangleMesh loadMesh(const std::string& path) {
   checkReadable(path);
   Importer importer;
+  {
+    // A PLY or STL file under another name is read from memory with its format's hint.
+    std::ifstream in(path, std::ios::binary);
+    char head[256];
+    in.read(head, sizeof head);
+    const std::string hint = sniffedHint(importer, path, std::string_view(head, static_cast<size_t>(in.gcount())),
+                                         static_cast<std::uint64_t>(std::filesystem::file_size(path)));
+    if (!hint.empty()) {
+      in.clear();  // a file shorter than the head read above has its end-of-file state set
+      in.seekg(0);
+      const std::string contents((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      const aiScene* raw = importer.assimp.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
+      return collectTriangles(postProcessed(importer, raw, path), path);
+    }
+  }
   return collectTriangles(postProcessed(importer, importer.assimp.ReadFile(path, 0), path), path);
 }
 
 TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
   if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
-  const std::string extension = std::filesystem::path(name).extension().string();
-  const std::string hint = extension.empty() ? std::string() : extension.substr(1);
   Importer importer;
+  const std::string extension = std::filesystem::path(name).extension().string();
+  std::string hint = sniffedHint(importer, name, std::string_view(contents).substr(0, 256), contents.size());
+  if (hint.empty() && !extension.empty()) hint = extension.substr(1);
   const aiScene* raw = importer.assimp.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
   return collectTriangles(postProcessed(importer, raw, name), name);
 }

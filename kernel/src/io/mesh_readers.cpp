@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -41,6 +42,15 @@ std::string quoted(std::string_view text) {
   }
   if (text.size() > 40) out += "...";
   return out + "'";
+}
+
+/// `v` in single precision (assimp's ai_real), beyond its range as an infinity (which the
+/// mesh cleaning then refuses, naming the vertex), not as undefined behaviour.
+float toFloat(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);
 }
 
 bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
@@ -155,20 +165,24 @@ struct Header {
 Header readPlyHeader(std::string_view bytes) {
   if (!startsLikePly(bytes.substr(0, bytes.find('\n'))))
     refuse("not a PLY file: it must start with a line 'ply', got " + quoted(bytes.substr(0, bytes.find('\n'))));
-  // Lines end at '\n', '\r' or "\r\n". The end_header line is found first, so that a header
-  // cut short says so whatever else is wrong with it; a NUL ends a line there too (as it
-  // does for assimp's reader), and is then refused as a byte that is not text.
-  std::vector<std::string_view> lines;
-  std::vector<bool> endsWithNul;
-  size_t pos = 0, bodyStart = std::string_view::npos;
-  while (pos < bytes.size()) {
-    size_t end = bytes.find_first_of(std::string_view("\n\r\0", 3), pos);
-    if (end == std::string_view::npos) end = bytes.size();
+  // Lines end at '\n', '\r' or "\r\n". The end_header line is found first (storing
+  // nothing: a damaged file may have no end), so that a header cut short says so whatever
+  // else is wrong with it; a NUL ends a line there too (as it does for assimp's reader), and
+  // is then refused as a byte that is not text.
+  const auto lineEnd = [&](size_t from) {
+    const size_t end = bytes.find_first_of(std::string_view("\n\r\0", 3), from);
+    return end == std::string_view::npos ? bytes.size() : end;
+  };
+  const auto nextLine = [&](size_t end) {
+    size_t next = end + 1;
+    if (end < bytes.size() && bytes[end] == '\r' && next < bytes.size() && bytes[next] == '\n') ++next;
+    return next;
+  };
+  size_t bodyStart = std::string_view::npos;
+  for (size_t pos = 0; pos < bytes.size();) {
+    const size_t end = lineEnd(pos);
     const std::string_view line = bytes.substr(pos, end - pos);
-    lines.push_back(line);
-    endsWithNul.push_back(end < bytes.size() && bytes[end] == '\0');
-    pos = end + 1;
-    if (end < bytes.size() && bytes[end] == '\r' && pos < bytes.size() && bytes[pos] == '\n') ++pos;
+    pos = nextLine(end);
     const size_t start = line.find_first_not_of(" \t");
     if (start != std::string_view::npos && line.substr(start).substr(0, 10) == "end_header" &&
         line.find_first_not_of(" \t", start + 10) == std::string_view::npos) {
@@ -178,6 +192,14 @@ Header readPlyHeader(std::string_view bytes) {
   }
   if (bodyStart == std::string_view::npos)
     refuse("PLY header has no end_header line (the file is truncated or not a PLY file)");
+  std::vector<std::string_view> lines;
+  std::vector<bool> endsWithNul;
+  for (size_t pos = 0; pos < bodyStart;) {
+    const size_t end = lineEnd(pos);
+    lines.push_back(bytes.substr(pos, end - pos));
+    endsWithNul.push_back(end < bytes.size() && bytes[end] == '\0');
+    pos = nextLine(end);
+  }
   for (size_t n = 0; n < lines.size(); ++n) {
     int bad = endsWithNul[n] ? 0 : -1;
     // Comments may be UTF-8 (a name with an accent); keywords, types and counts are ASCII.
@@ -329,25 +351,30 @@ std::uint64_t minimumBytes(const Element& element, Format format) {
 /// Reads the values of a PLY body, ASCII or binary, one at a time.
 class PlyBody {
  public:
-  PlyBody(std::string_view body, Format format, std::int64_t firstLine)
-      : body_(body), format_(format), tokens_(body, firstLine) {}
+  PlyBody(std::string_view body, size_t header, Format format, std::int64_t firstLine)
+      : body_(body), header_(header), format_(format), tokens_(body, firstLine) {}
 
-  /// The next value, of type `type`; `what` names it for messages.
-  double value(Type type, const std::string& what) {
+  /// The next value, of type `type`; what() names it for messages (called only on an error,
+  /// so that reading a value builds no string).
+  template <class What>
+  double value(Type type, What&& what) {
     if (format_ == Format::Ascii) {
       const std::string_view token = tokens_.next();
-      if (token.empty()) refuse("PLY file ends before " + what);
+      if (token.empty()) refuse("PLY file ends before " + what());
       double v = 0;
       if (!parseNumber(token, v))
-        refuse("PLY line " + std::to_string(tokens_.line()) + ": " + what + " must be a number, got " + quoted(token));
-      if (isWhole(type) && v != static_cast<double>(static_cast<std::int64_t>(v)))
-        refuse("PLY line " + std::to_string(tokens_.line()) + ": " + what + " must be a whole number, got " +
+        refuse("PLY line " + std::to_string(tokens_.line()) + ": " + what() + " must be a number, got " +
+               quoted(token));
+      // A whole number within +-2^53 (where doubles hold every integer): "nan", "inf" and
+      // 1e19 are not counts or indices.
+      if (isWhole(type) && !(std::abs(v) <= 0x1p53 && std::trunc(v) == v))
+        refuse("PLY line " + std::to_string(tokens_.line()) + ": " + what() + " must be a whole number, got " +
                quoted(token));
       return v;
     }
     const size_t size = sizeOf(type);
     if (body_.size() - pos_ < size)
-      refuse("PLY file ends before " + what + " (byte " + std::to_string(pos_) + " of the body)");
+      refuse("PLY file ends before " + what() + " (byte " + std::to_string(header_ + pos_) + " of the file)");
     // The value's bits, most significant byte first, whatever the file's byte order.
     std::uint64_t bits = 0;
     for (size_t k = 0; k < size; ++k) {
@@ -388,6 +415,7 @@ class PlyBody {
 
  private:
   std::string_view body_;
+  size_t header_;  // the header's bytes, before the body
   Format format_;
   Tokens tokens_;
   size_t pos_ = 0;
@@ -427,7 +455,7 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
   PolygonMesh mesh;
   mesh.xyz.reserve(3 * vertexCount);
   std::uint64_t droppedFaces = 0;
-  PlyBody reader(body, header.format, header.bodyLine);
+  PlyBody reader(body, header.bodyStart, header.format, header.bodyLine);
   for (size_t e = 0; e < header.elements.size(); ++e) {
     const Element& element = header.elements[e];
     const bool vertices = static_cast<int>(e) == layout.vertexElement;
@@ -438,13 +466,13 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
         const Property& property = element.properties[p];
         const auto what = [&] { return element.name + " " + std::to_string(i) + " property '" + property.name + "'"; };
         if (!property.list) {
-          const double v = reader.value(property.type, what());
+          const double v = reader.value(property.type, what);
           if (vertices)
             for (int axis = 0; axis < 3; ++axis)
               if (layout.xyz[axis] == static_cast<int>(p)) position[axis] = v;
           continue;
         }
-        const double count = reader.value(property.countType, "the count of " + what());
+        const double count = reader.value(property.countType, [&] { return "the count of " + what(); });
         if (count < 0)
           refuse("PLY " + what() + ": a list's count must be >= 0, got " +
                  std::to_string(static_cast<long long>(count)));
@@ -454,7 +482,7 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
                  " corners; weft reads polygons of up to " + std::to_string(kMaxPolygonCorners));
         // A list longer than the bytes left is refused by value() when they run out.
         for (std::uint64_t k = 0; k < static_cast<std::uint64_t>(count); ++k) {
-          const double v = reader.value(property.type, "entry " + std::to_string(k) + " of " + what());
+          const double v = reader.value(property.type, [&] { return "entry " + std::to_string(k) + " of " + what(); });
           if (!corners) continue;
           if (v < 0 || v >= static_cast<double>(vertexCount))
             refuse("PLY face " + std::to_string(i) + " corner " + std::to_string(k) +
@@ -470,7 +498,7 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
         }
       }
       if (vertices)
-        for (const double v : position) mesh.xyz.push_back(static_cast<float>(v));
+        for (const double v : position) mesh.xyz.push_back(toFloat(v));
     }
   }
   reader.expectEnd();
@@ -572,7 +600,7 @@ std::vector<PolygonMesh> readAsciiStl(std::string_view bytes) {
       for (int k = 0; k < 3; ++k) {
         expect("vertex");
         for (const char* axis : {"a vertex's x", "a vertex's y", "a vertex's z"})
-          mesh.xyz.push_back(static_cast<float>(number(axis)));
+          mesh.xyz.push_back(toFloat(number(axis)));
       }
       token = tokens.next();
       if (equalsIgnoringCase(token, "vertex"))

@@ -29,7 +29,8 @@ using detail::number;
 template <class S>
 void checkMaterial(const char* name, const SpringMaterial& m) {
   using Limits = detail::PrecisionLimits<S>;
-  const std::string range = std::string(" and within the range of ") + Limits::kName + " precision";
+  const std::string range =
+      std::string(" and at most ") + detail::number(Limits::kLargest) + " in " + Limits::kName + " precision";
   if (!(std::isfinite(m.stiffness) && m.stiffness >= 0 && Limits::representable(m.stiffness)))
     reject(std::string("ClothMeshSpec.") + name + ".stiffness", m.stiffness, "finite and >= 0 (N/m)" + range);
   if (!(std::isfinite(m.damping) && m.damping >= 0 && Limits::representable(m.damping)))

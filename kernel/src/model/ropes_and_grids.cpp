@@ -50,8 +50,9 @@ void checkPrecision(const std::string& spec, double mass, const Vec3d& from, con
     if (material == nullptr) continue;
     const auto check = [&](const char* field, double value, const char* unit) {
       if (!(std::isfinite(value) && value >= 0 && Limits::representable(value)))
-        detail::rejectField(spec + "." + name + "." + field, value,
-                            std::string("finite and >= 0 (") + unit + ") and within the range of" + in);
+        detail::rejectField(
+            spec + "." + name + "." + field, value,
+            std::string("finite and >= 0 (") + unit + ") and at most " + detail::number(Limits::kLargest) + in);
     };
     check("stiffness", material->stiffness, "N/m");
     check("damping", material->damping, "N s/m");
@@ -84,7 +85,7 @@ void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
   const Index first = builder.particleCount();
   const double step = spec.length / static_cast<double>(n - 1);
   const double m = spec.totalMass / static_cast<double>(n);
-  checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, spec.length),
+  checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, step * static_cast<double>(n - 1)),
                     {{"structural", &spec.structural}, {"bend", spec.bendSprings ? &spec.bend : nullptr}});
   for (Index i = 0; i < n; ++i) {
     const double t = step * static_cast<double>(i);
