@@ -3,33 +3,37 @@
 // Design note
 // -----------
 // loadMesh reads any format assimp reads (OBJ, 3DS — the original design's format — PLY,
-// STL, glTF, Collada, FBX, ...) into one TriangleMesh. PLY (ASCII and binary) and STL
-// (ASCII and binary) are read by weft's own readers, which take the place of assimp's for
-// those formats (assimp 5.2's PLY reader hangs, crashes or allocates gigabytes on damaged
-// files): they check every count a file declares against the bytes that follow, and name
-// the header line, element or facet where a damaged file goes wrong. Then, for every
-// format, assimp triangulates polygons
-// (aiProcess_Triangulate) and bakes the node transforms into the vertices and flattens
-// the hierarchy (aiProcess_PreTransformVertices, so instanced meshes appear once per
-// instance); weft then concatenates every mesh of the scene and keeps the faces with
-// three corners (points and lines are ignored). assimp is not asked to join identical
-// vertices: welding is cleanMesh's job, so that it can be counted and reported. Note
-// that assimp gives every face corner of an OBJ or 3DS file its own vertex, so the weld
-// count of a file read this way includes those copies, not only the file's own
-// duplicates. Coordinates pass through assimp's single-precision ai_real.
+// STL, glTF, Collada, FBX, ...) into one TriangleMesh. PLY (ASCII and binary, both byte
+// orders) and STL (ASCII and binary) are read by weft's own readers, which take the place
+// of assimp's for those formats (assimp 5.2's PLY reader hangs, crashes or allocates
+// gigabytes on damaged files): they check every count a file declares against the bytes
+// that follow before allocating, and name the header line, element or facet where a
+// damaged file goes wrong. A file whose extension assimp does not know (or that has none)
+// goes to them when its first bytes say PLY or STL. Then, for every format, assimp
+// triangulates polygons (aiProcess_Triangulate), bakes the node transforms into the
+// vertices and flattens the hierarchy (aiProcess_PreTransformVertices, so instanced meshes
+// appear once per instance); weft then concatenates every mesh of the scene and keeps the
+// faces with three corners (points and lines are ignored). assimp is not asked to join
+// identical vertices: welding is cleanMesh's job, so that it can be counted and reported.
+// Note that every face corner of an OBJ, 3DS or STL file gets its own vertex (PLY keeps
+// the file's shared vertices), so the weld count of such a file includes those copies,
+// not only the file's own duplicates. Coordinates pass through single precision (assimp's
+// ai_real); one beyond its range arrives as an infinity, which cleanMesh refuses.
 //
 // Orientation is assimp's, which is weft's (y up, gravity along -y): files in a z-up
 // format are turned by their reader, e.g. the 3DS reader maps a file's (x, y, z) to
-// (x, z, -y). Units are the file's, read as metres (ClothMeshSpec::scale converts).
+// (x, z, -y); PLY and STL arrive as written. Units are the file's, read as metres
+// (ClothMeshSpec::scale converts).
 //
-// Errors are std::runtime_error messages that start with "mesh file '<path>': ": the
-// file is missing or cannot be opened (with strerror), is a directory, is empty, assimp
-// cannot read it (with assimp's error string, or for PLY and STL weft's reader's own
-// message: "PLY header line 3: ...", "PLY face 7 corner 2: vertex index must be ...",
-// "ASCII STL line 12: expected 'endloop', got ..."), or it has no triangles (with the numbers of points and lines it has instead). loadCleanMesh reports what cleanMesh finds
-// wrong with the file's contents (a coordinate that is not finite, no triangle left) the same way: std::runtime_error,
-// the file name in front of cleanMesh's message. A bad MeshCleanOptions is the caller's error: std::invalid_argument,
-// before the file is read.
+// Errors are std::runtime_error messages that start with "mesh file '<path>': ": the file
+// is missing or cannot be opened (with strerror), is a directory, is empty, cannot be read
+// (assimp's error string, or for PLY and STL the reader's own message: "PLY header line 3:
+// ...", "PLY face 7 corner 2: vertex index must be ...", "ASCII STL line 12: expected
+// 'endloop', got ..."), or has no triangles (with the numbers of points and lines it has
+// instead). loadCleanMesh reports what cleanMesh finds wrong with the file's contents (a
+// coordinate that is not finite, no triangle left) the same way: std::runtime_error, the
+// file name in front of cleanMesh's message. A bad MeshCleanOptions is the caller's error:
+// std::invalid_argument, before the file is read.
 //
 // weft::io is a separate library so that the kernel needs only Eigen and TBB.
 #pragma once
@@ -40,7 +44,7 @@
 
 namespace weft {
 
-/// The triangles of every mesh in the file at `path`, vertices as assimp delivers them.
+/// The triangles of every mesh in the file at `path`, vertices as its reader delivers them.
 TriangleMesh loadMesh(const std::string& path);
 
 /// loadMesh, then cleanMesh with `options` (filling *report if it is not null).
@@ -48,8 +52,8 @@ TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& opti
 
 /// loadMesh for a file's contents held in memory (a mesh embedded in a program, one
 /// received over a network): `name` stands for the path in messages, and its extension
-/// tells assimp the format ("torus.obj"). Same errors as loadMesh (an empty `contents`
-/// is "the file is empty").
+/// tells the format ("torus.obj"; PLY and STL contents are also known by their first
+/// bytes). Same errors as loadMesh (an empty `contents` is "the file is empty").
 TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name);
 /// loadMeshFromMemory, then cleanMesh.
 TriangleMesh loadCleanMeshFromMemory(const std::string& contents, const std::string& name,
