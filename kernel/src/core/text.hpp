@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <charconv>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -14,6 +15,24 @@
 #include "weft/core/types.hpp"
 
 namespace weft::detail {
+
+/// `bytes` quoted from a file in a message: printable ASCII as it is, every other byte as
+/// \xNN, at most `max` bytes ("..." after a cut).
+inline std::string escaped(std::string_view bytes, size_t max = std::string_view::npos) {
+  std::string out;
+  for (size_t k = 0; k < bytes.size() && k < max; ++k) {
+    const unsigned char u = static_cast<unsigned char>(bytes[k]);
+    if (u >= 32 && u < 127) {
+      out += static_cast<char>(u);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", u);
+      out += hex;
+    }
+  }
+  if (bytes.size() > max) out += "...";
+  return out;
+}
 
 /// Shortest round-trip text of v.
 inline std::string number(double v) {

@@ -8,8 +8,11 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <type_traits>
 #include <utility>
+
+#include "core/text.hpp"
 
 namespace weft {
 
@@ -266,17 +269,7 @@ FrameCacheReader<S>::FrameCacheReader(std::string path) : path_(std::move(path))
     fail("truncated: " + std::to_string(size) + " bytes, shorter than the " + std::to_string(kCacheHeaderBytes) +
          "-byte header");
   if (std::memcmp(header, kCacheMagic, sizeof kCacheMagic) != 0) {
-    std::string magic;
-    for (int i = 0; i < 8; ++i) {
-      const unsigned char c = header[i];
-      if (c >= 32 && c < 127) {
-        magic += static_cast<char>(c);
-      } else {
-        char hexByte[5];
-        std::snprintf(hexByte, sizeof hexByte, "\\x%02x", c);
-        magic += hexByte;
-      }
-    }
+    const std::string magic = detail::escaped(std::string_view(reinterpret_cast<const char*>(header), 8));
     fail("bad magic \"" + magic + "\", expected \"WEFTCACH\": not a weft frame cache");
   }
   std::uint32_t fields[4];

@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "../core/text.hpp"
+
 namespace weft::io_detail {
 
 namespace {
@@ -26,23 +28,8 @@ bool equalsIgnoringCase(std::string_view a, std::string_view b) {
   return true;
 }
 
-/// `text` cut to at most 40 characters, bytes that are not printable written as \xNN, for
-/// quoting a file's contents in a message.
-std::string quoted(std::string_view text) {
-  std::string out = "'";
-  for (size_t k = 0; k < text.size() && k < 40; ++k) {
-    const unsigned char u = static_cast<unsigned char>(text[k]);
-    if (u >= 32 && u < 127) {
-      out += static_cast<char>(u);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", u);
-      out += hex;
-    }
-  }
-  if (text.size() > 40) out += "...";
-  return out + "'";
-}
+/// `text` quoted for a message: at most 40 bytes, those that are not printable as \xNN.
+std::string quoted(std::string_view text) { return "'" + detail::escaped(text, 40) + "'"; }
 
 /// `v` in single precision (assimp's ai_real), beyond its range as an infinity (which the
 /// mesh cleaning then refuses, naming the vertex), not as undefined behaviour.
