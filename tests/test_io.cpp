@@ -285,6 +285,15 @@ TEST(Frames, BadMagicFailsNamingTheFile) {
   EXPECT_NE(message.find(path), std::string::npos) << message;
   EXPECT_NE(message.find("magic"), std::string::npos) << message;
   EXPECT_NE(message.find("WEFTCASH"), std::string::npos) << message;
+  {  // bytes that are not printable are quoted as \xNN
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.write(
+        "WEFT\x01\xff"
+        "AB",
+        8);
+  }
+  const std::string escaped = thrownMessage<std::runtime_error>([&] { FrameCacheReader<double> reader(path); });
+  EXPECT_NE(escaped.find("bad magic \"WEFT\\x01\\xffAB\""), std::string::npos) << escaped;
 }
 
 // The header of fuzz_frame_cache's seeds with the sizes of a corrupt file: the reader must
