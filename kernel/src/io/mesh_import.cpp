@@ -60,11 +60,9 @@ void checkReadable(const std::string& path) {
 /// (triangulation, node transforms) runs on what weft read as on any other format.
 class WeftLoader final : public Assimp::BaseImporter {
  public:
-  using Sniff = bool (*)(std::string_view head, std::uint64_t size);
   using Read = std::vector<io_detail::PolygonMesh> (*)(std::string_view bytes);
 
-  WeftLoader(const char* name, const char* extension, Sniff sniff, Read read)
-      : sniff_(sniff), read_(read), extension_(extension) {
+  WeftLoader(const char* name, const char* extension, Read read) : read_(read), extension_(extension) {
     desc_.mName = name;
     desc_.mAuthor = "weft";
     desc_.mMaintainer = "weft";
@@ -77,13 +75,10 @@ class WeftLoader final : public Assimp::BaseImporter {
   /// The message of the last file this loader refused ("" if none).
   const std::string& error() const { return error_; }
 
-  bool CanRead(const std::string& file, Assimp::IOSystem* io, bool /*checkSig*/) const override {
-    if (io == nullptr) return false;
-    std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
-    if (!stream) return false;
-    char head[256];
-    const size_t got = stream->Read(head, 1, sizeof head);
-    return sniff_(std::string_view(head, got), stream->FileSize());
+  /// By extension only: a PLY or STL file under another name gets its format's hint from
+  /// sniffedHint before assimp sees it, so asking the bytes again here would repeat that.
+  bool CanRead(const std::string& file, Assimp::IOSystem* /*io*/, bool /*checkSig*/) const override {
+    return SimpleExtensionCheck(file, extension_);
   }
 
   const aiImporterDesc* GetInfo() const override { return &desc_; }
@@ -141,14 +136,11 @@ class WeftLoader final : public Assimp::BaseImporter {
     }
   }
 
-  Sniff sniff_;
   Read read_;
   const char* extension_;
   aiImporterDesc desc_{};
   std::string error_;
 };
-
-bool sniffPly(std::string_view head, std::uint64_t /*size*/) { return io_detail::startsLikePly(head); }
 
 /// An importer whose PLY and STL loaders are weft's (WeftLoader) instead of assimp's.
 struct Importer {
@@ -159,8 +151,8 @@ struct Importer {
   Importer() {
     // A file with bones but no meshes must not turn into assimp's generated bone geometry.
     assimp.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
-    ply = replace(new WeftLoader("weft PLY reader", "ply", sniffPly, io_detail::readPly));
-    stl = replace(new WeftLoader("weft STL reader", "stl", io_detail::looksLikeStl, io_detail::readStl));
+    ply = replace(new WeftLoader("weft PLY reader", "ply", io_detail::readPly));
+    stl = replace(new WeftLoader("weft STL reader", "stl", io_detail::readStl));
   }
 
   /// The message weft's own reader gave for the file it last refused ("" if none did).

@@ -2,11 +2,10 @@
 //
 // Design note
 // -----------
-// Assimp 5.2's PLY and STL readers misbehave on damaged files: fuzzing mesh import found a
-// reader that never returns, a segmentation fault, an assertion that aborts the program, a
-// 7.6 GB allocation from a 324-byte file, and heap corruption, all on PLY files, and its STL
-// reader takes on trust the triangle count a binary file declares. These two formats are
-// simple enough to read exactly, so weft reads them itself: every count a header declares
+// Assimp 5.2's PLY reader misbehaves on damaged files: fuzzing mesh import found it never
+// returning, a segmentation fault, assertions that abort the program, a 7.6 GB allocation
+// from a 324-byte file, and heap corruption. PLY and STL (the other simple format, read
+// here with the same care) are simple enough to read exactly, so weft reads them itself: every count a header declares
 // is checked against the bytes that follow before anything is allocated, every index
 // against the vertices, every value is parsed with std::from_chars, and a damaged file is
 // refused with the line or element where it went wrong. The readers hand their polygons to
