@@ -16,6 +16,8 @@
 //   BM_Peer_Embree_SelfCollide/size/threads   (where Embree 3 is found) rtcCollide of the
 //       accordion with itself, boxes grown by half the thickness: the candidate listing of a
 //       peer, for the ratio (counters: candidates, pairs_i_lt_j).
+//   BM_IntersectionCheck/size/bvh/threads     the exact check (countSelfIntersections) on the
+//       accordion, and (bvh:1) the same count through the refittable BVH's pair query.
 //   BM_FoldStep/size/self/threads             one step (double, RK4) of the accordion after it
 //       has settled 0.1 s on a floor, with and without self-collision (the state is reset
 //       before each step): what the pass costs in a step with resting layers.
@@ -181,6 +183,38 @@ BENCHMARK(BM_Peer_Embree_SelfCollide)
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
 #endif
+
+/// The exact intersection check (countSelfIntersections: its own tree of 8-triangle leaves,
+/// counting as it walks) on the accordion, float; `bvh:1` is the same count through the
+/// refittable TriangleBvh and its pair query (selfIntersectingPairs), which the check used
+/// before (their memory is in docs/benchmarks.md, from the process's peak).
+void BM_IntersectionCheck(benchmark::State& st) {
+  const Index size = static_cast<Index>(st.range(0));
+  const bool viaBvh = st.range(1) != 0;
+  Executor exec(static_cast<int>(st.range(2)));
+  const ModelAndState<float> built = accordion<float>(size);
+  std::int64_t found = -1;
+  for (auto _ : st) {
+    if (viaBvh) {
+      TriangleBvh<float> bvh;
+      bvh.build(built.state.x, built.model.triangles(), exec, 0);
+      bvh.releaseBuildBuffers();
+      std::vector<TrianglePair> pairs;
+      BvhPairScratch scratch;
+      bvh.selfIntersectingPairs(built.state.x, pairs, scratch, exec);
+      found = static_cast<std::int64_t>(pairs.size());
+    } else {
+      found = countSelfIntersections(built.model, built.state.x, exec);
+    }
+  }
+  if (found != 0) st.SkipWithError("the accordion intersects");
+  st.counters["triangles"] = static_cast<double>(built.model.triangleCount());
+}
+BENCHMARK(BM_IntersectionCheck)
+    ->ArgsProduct({{128, 256}, {0, 1}, {1, 2}})
+    ->ArgNames({"size", "bvh", "threads"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);
 
 /// The accordion settled on a floor for 0.1 s with self-collision (cached per size).
 const State<double>& settledAccordion(Index size) {

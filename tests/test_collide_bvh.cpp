@@ -25,6 +25,7 @@
 #include "collide/geometry.hpp"
 #include "support/alloc_counter.hpp"
 #include "support/test_support.hpp"
+#include "weft/collide/self_collision.hpp"
 #include "weft/collide/shapes.hpp"
 
 namespace weft::test {
@@ -610,6 +611,52 @@ TYPED_TEST(BvhTyped, QueriesMatchBruteForce) {
   // segment beside (11), the point off the face (13); segments apart on one line (17, 18).
   for (Index t : {1, 2, 7, 9, 11, 13}) EXPECT_FALSE(found(0, t)) << "0 and " << t;
   EXPECT_FALSE(found(17, 18));
+}
+
+/// The mesh as a Model (a particle of 1 kg per vertex, its triangles), for the checks that
+/// take one.
+template <class S>
+Model<S> modelOf(const Mesh<S>& m) {
+  ModelBuilder<S> builder;
+  for (Index i = 0; i < m.x.rows(); ++i)
+    builder.addParticle(
+        {static_cast<double>(m.x(i, 0)), static_cast<double>(m.x(i, 1)), static_cast<double>(m.x(i, 2))}, 1.0);
+  for (Index t = 0; t < m.triangles.count(); ++t)
+    builder.addTriangle(m.triangles.a[t], m.triangles.b[t], m.triangles.c[t]);
+  return builder.build().model;
+}
+
+// countSelfIntersections has a tree of its own (leaves of several triangles, an implicit
+// hierarchy, pairs counted as the walk finds them): it must count exactly the pairs the brute
+// force finds, on meshes of every size around its leaf size, crumpled cloths full of
+// intersections and the degenerate cases, with the same count on 1 and 2 threads.
+TYPED_TEST(BvhTyped, SelfIntersectionCountMatchesBruteForce) {
+  using S = TypeParam;
+  const Executor one(1), two(2);
+  std::vector<Mesh<S>> meshes{degenerateMesh<S>(), crumpledCloth<S>(16, 0.8, 3), crumpledCloth<S>(40, 1.5, 4),
+                              randomSoup<S>(400, 0.06, 1), randomSoup<S>(2000, 0.05, 9)};
+  for (Index n : {1, 2, 3, 7, 8, 9, 15, 16, 17, 33, 100}) meshes.push_back(randomSoup<S>(n, 0.4, 10 + n));
+  std::int64_t total = 0;
+  for (const Mesh<S>& m : meshes) {
+    SCOPED_TRACE(m.name + ", " + std::to_string(m.triangles.count()) + " triangles");
+    const Model<S> model = modelOf(m);
+    const std::int64_t want = static_cast<std::int64_t>(bruteSelf(m, S(0), true).size());
+    EXPECT_EQ(countSelfIntersections(model, m.x, one), want);
+    EXPECT_EQ(countSelfIntersections(model, m.x, two), want);
+    total += want;
+  }
+  EXPECT_GT(total, 1000) << "the meshes have intersections to count";
+  // A flat cloth: none. Positions of the wrong shape are refused.
+  const Mesh<S> flat = crumpledCloth<S>(24, 0.0, 5);
+  EXPECT_EQ(countSelfIntersections(modelOf(flat), flat.x, two), 0);
+  const Vec3Array<S> wrong(flat.x.rows() - 1, 3);
+  try {
+    (void)countSelfIntersections(modelOf(flat), wrong, two);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("x must be 576 x 3 (the model's particles), got 575 x 3"), std::string::npos)
+        << e.what();
+  }
 }
 
 TYPED_TEST(BvhTyped, EmptySingleAndInvalidInput) {

@@ -570,21 +570,6 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
   return stats;
 }
 
-template <class S>
-std::int64_t countSelfIntersections(const Model<S>& model, const Vec3Array<S>& x, const Executor& exec) {
-  if (model.triangleCount() < 2) return 0;
-  TriangleBvh<S> bvh;
-  bvh.build(x, model.triangles(), exec, 0);
-  bvh.releaseBuildBuffers();  // built once: its query's buffers can take their place
-  std::vector<TrianglePair> pairs;
-  BvhPairScratch scratch;
-  bvh.selfIntersectingPairs(x, pairs, scratch, exec);
-  return static_cast<std::int64_t>(pairs.size());
-}
-
-template std::int64_t countSelfIntersections(const Model<float>&, const Vec3Array<float>&, const Executor&);
-template std::int64_t countSelfIntersections(const Model<double>&, const Vec3Array<double>&, const Executor&);
-
 template class SelfCollider<float>;
 template class SelfCollider<double>;
 

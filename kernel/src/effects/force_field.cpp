@@ -185,9 +185,8 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
       windowSize_ = (windowSize_ + perLine - 1) / perLine * perLine;
       const Index perPage = static_cast<Index>(4096 / sizeof(S));
       windowSize_ += ((5 * perLine - windowSize_ % perPage) % perPage + perPage) % perPage;
-      const Index chunks = Executor::blockCount(g.height, chunkRows_);
-      // Zero once: slots without a spring are never written, so they stay zero.
-      stencilWindows_.assign(static_cast<size_t>(chunks) * g.families.size() * 3 * windowSize_, S(0));
+      // The windows themselves, one per thread, are made by the first pass (which knows the
+      // executor's thread count).
       break;
     }
     case ForceStrategy::Auto:
@@ -315,18 +314,43 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
   // r0 - halo). Springs starting in the halo rows are recomputed by this chunk rather than
   // shared with the chunk above: the values are bitwise the same either way, so results do
   // not depend on how chunks are scheduled, and the window never leaves this core's cache.
+  // A window per thread, not per chunk: a thread runs one chunk at a time, and each chunk
+  // writes every slot its gather reads (the family forces, and zero where there is no
+  // spring), so what a window held before does not matter. Made by the first pass, and again
+  // only if a later pass comes with more threads.
+  const size_t perWindow = static_cast<size_t>(familyCount) * 3 * static_cast<size_t>(windowSize_);
+  const bool serial = exec.threadCount() == 1 || Executor::blockCount(H, chunkRows_) == 1;
+  const size_t slots = serial ? 1 : static_cast<size_t>(exec.threadCount());
+  if (stencilWindows_.size() < slots * perWindow) stencilWindows_.assign(slots * perWindow, S(0));
   exec.parallelFor(H, chunkRows_, [&](Index r0, Index r1) {
-    S* window = stencilWindows_.data() + static_cast<size_t>(r0 / chunkRows_) * familyCount * 3 * windowSize_;
+    // The thread's slot in the executor's arena; the serial path (one thread or one chunk)
+    // may run outside it and uses window 0.
+    const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
+    if (thread < 0 || static_cast<size_t>(thread) >= slots)
+      throw std::logic_error("ForceField: a stencil chunk ran outside the executor's arena");
+    S* window = stencilWindows_.data() + static_cast<size_t>(thread) * perWindow;
+    const Index span = (r1 - r0 + halo) * W;  // the slots the gather below reads
     for (Index k = 0; k < familyCount; ++k) {
       const GridFamily<S>& f = g.families[k];
       const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
       // Halo rows r0 - j only matter to families reaching j rows down (dr >= j).
       const Index first = std::max<Index>(0, r0 - f.rowOffset);
       const Index last = std::min<Index>(r1, H - f.rowOffset);
-      if (first >= last) continue;
       S* fc[3];
       for (int c = 0; c < 3; ++c)
         fc[c] = window + (k * 3 + c) * windowSize_ + (halo - r0) * W;  // slot of particle i: fc + i
+      if (first >= last) {  // no spring of this family starts in the chunk's rows
+        for (int c = 0; c < 3; ++c) std::fill_n(window + (k * 3 + c) * windowSize_, span, S(0));
+        continue;
+      }
+      // Zero before and after the run below: halo rows the family does not reach, the rows
+      // above the grid, the boundary columns, the bottom rows without a spring.
+      const Index runBegin = first * W + c0 - (r0 - halo) * W, runEnd = (last - 1) * W + c1 - (r0 - halo) * W;
+      for (int c = 0; c < 3; ++c) {
+        S* slot = window + (k * 3 + c) * windowSize_;
+        std::fill_n(slot, runBegin, S(0));
+        std::fill_n(slot + runEnd, span - runEnd, S(0));
+      }
       // One flat run from (first, c0) to (last - 1, c1 - 1): a single vector loop instead
       // of one short loop (and a scalar tail of square roots) per row. The run also
       // evaluates the wrap-around pairs between rows; their slots are zeroed below.

@@ -7,7 +7,9 @@
 // Each stage's combination runs inside its force evaluation (an AccelerationSink): the
 // weighted sums accumulate and the next stage state is formed while the accelerations
 // are in L1. A sink may not write the state being evaluated, so stage states alternate
-// between two buffers (A, B): x0 -> A -> B -> A -> x1. 4 force evaluations, 4 passes.
+// between two buffers: the stage buffer A and the output (x1, v1), which is free until the
+// last stage writes the result: x0 -> A -> (x1, v1) -> A -> (x1, v1). 4 force evaluations,
+// 4 passes, and four state-sized buffers of its own (A and the two sums).
 #include "row_blocks.hpp"
 
 namespace weft::detail {
@@ -16,7 +18,7 @@ namespace {
 template <class S>
 class Rk4 final : public Integrator<S> {
  public:
-  explicit Rk4(Index n) : xa_(n, 3), va_(n, 3), xb_(n, 3), vb_(n, 3), sumV_(n, 3), sumA_(n, 3) {}
+  explicit Rk4(Index n) : xa_(n, 3), va_(n, 3), sumV_(n, 3), sumA_(n, 3) {}
   IntegratorKind kind() const override { return IntegratorKind::Rk4; }
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
                    Vec3Array<S>& v1, const Executor& exec) override {
@@ -33,8 +35,8 @@ class Rk4 final : public Integrator<S> {
     };
     forces.setStageOffset(0);
     forces.accelerations(x0, v0, makeSink<S>(stage1), exec);
-    // Stages 2 and 3: k = (vs, a(xs, vs)) from buffer `from`; next stage state, at h/2
-    // then at h, into buffer `to`.
+    // Stages 2 and 3: k = (vs, a(xs, vs)) from (xs, vs); the next stage state, at h/2 then
+    // at h, into (xt, vt).
     auto middle = [&](const Vec3Array<S>& xs, const Vec3Array<S>& vs, Vec3Array<S>& xt, Vec3Array<S>& vt, S reach) {
       auto stage = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
         for (int c = 0; c < 3; ++c) {
@@ -48,8 +50,9 @@ class Rk4 final : public Integrator<S> {
       forces.accelerations(xs, vs, makeSink<S>(stage), exec);
     };
     forces.setStageOffset(static_cast<double>(half));  // stages 2 and 3 are at t + h/2
-    middle(xa_, va_, xb_, vb_, half);
-    middle(xb_, vb_, xa_, va_, h);
+    // (x1, v1) holds stage 3's state until stage 4 writes the result there.
+    middle(xa_, va_, x1, v1, half);
+    middle(x1, v1, xa_, va_, h);
     auto stage4 = [&](Index b, Index n, const S* ax, const S* ay, const S* az) {
       for (int c = 0; c < 3; ++c) {
         rows(x1, c, b, n) = rows(x0, c, b, n) + sixth * (rows(sumV_, c, b, n) + rows(va_, c, b, n));
@@ -63,7 +66,6 @@ class Rk4 final : public Integrator<S> {
 
  private:
   Vec3Array<S> xa_, va_;  // (n x 3) stage state A: positions m, velocities m/s
-  Vec3Array<S> xb_, vb_;  // (n x 3) stage state B
   Vec3Array<S> sumV_;     // (n x 3) k1x + 2 k2x + 2 k3x, m/s
   Vec3Array<S> sumA_;     // (n x 3) k1v + 2 k2v + 2 k3v, m/s^2
 };

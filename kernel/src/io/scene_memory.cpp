@@ -11,11 +11,12 @@ namespace weft {
 
 namespace {
 // Heap bytes of an assembled Simulation per particle and per spring, by integrator, for
-// double and float: measured with mallinfo2() after assembling and stepping the flag
-// (256^2) and the rope (16384) with each integrator and solved for the two rates with 12
-// bytes per triangle (three indices); the integrators differ in the state-sized buffers
-// they keep (RK4 four stages, RK45 seven, implicit Euler its CG vectors and a 3x3 block
-// per spring).
+// double and float. The spring rate is the Model's arrays (two indices, rest length,
+// stiffness, damping and a class byte: 21 bytes in float, 33 in double), plus implicit
+// Euler's 3x3 block per spring; the particle rate was then solved from mallinfo2() after
+// assembling and stepping the 256^2 flag with each integrator (2026-11-26), with 12 bytes per
+// triangle (three indices). The integrators differ in the state-sized buffers they keep
+// (RK4 four, RK45 seven, implicit Euler its CG vectors).
 struct Rates {
   double particle, spring;
 };
@@ -23,22 +24,31 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
   switch (kind) {
     case IntegratorKind::ExplicitEuler:
     case IntegratorKind::SymplecticEuler:
-      return isFloat ? Rates{66, 38} : Rates{122, 62};
+      return isFloat ? Rates{66, 21} : Rates{127, 33};
     case IntegratorKind::Midpoint:
     case IntegratorKind::VelocityVerlet:
-      return isFloat ? Rates{90, 38} : Rates{170, 62};
+      return isFloat ? Rates{90, 21} : Rates{175, 33};
     case IntegratorKind::Rk4:
-      return isFloat ? Rates{138, 38} : Rates{266, 62};
+      return isFloat ? Rates{114, 21} : Rates{223, 33};
     case IntegratorKind::Rk45:
-      return isFloat ? Rates{259, 38} : Rates{506, 62};
+      return isFloat ? Rates{258, 21} : Rates{511, 33};
     case IntegratorKind::ImplicitEuler:
-      return isFloat ? Rates{158, 82} : Rates{302, 142};
+      return isFloat ? Rates{158, 85} : Rates{302, 154};
     case IntegratorKind::Projective:
       // Two cached factors of the global matrix (double; ~69 entries of 12 bytes per
       // particle at 128^2, growing slowly with the size) dominate.
       return isFloat ? Rates{2000, 62} : Rates{2100, 110};
   }
-  return {2100, 142};  // the largest
+  return {2100, 154};  // the largest
+}
+// While the model is built, the builder's arrays (in double: 7 values and a pin flag per
+// particle, 33 bytes per spring, 12 per triangle) and the Model's particle arrays and state
+// (8 values of the precision) are alive at once, and the Model's first spring array and
+// triangles are made beside them: for a cloth of mostly springs this, not the
+// Simulation, can be the run's peak (the 256^2 flag in float: 21.8 MB by this count, 20.7
+// MB measured).
+double builderBytes(double particles, double springs, double triangles, bool isFloat) {
+  return (57.0 + 8.0 * (isFloat ? 4 : 8)) * particles + 33.0 * springs + 24.0 * triangles;
 }
 constexpr double kBytesPerTriangle = 12;
 // With self-collision: the triangles' BVH, the pair-query buffers and the candidate lists,
@@ -76,12 +86,15 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
   }
   e.rigidBodies = static_cast<std::int64_t>(scene.simulation.rigid.bodies.size());
   e.readsMeshes = e.readsMeshes || !scene.meshObstacles.empty();
-  const Rates r = memoryRates(scene.simulation.integrator, scene.precision == Precision::Float);
-  e.bytes = r.particle * static_cast<double>(e.particles) + r.spring * static_cast<double>(e.springs) +
-            kBytesPerTriangle * static_cast<double>(e.triangles) +
-            (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * static_cast<double>(e.triangles)
-                                                    : 0.0) +
-            kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
+  const bool isFloat = scene.precision == Precision::Float;
+  const Rates r = memoryRates(scene.simulation.integrator, isFloat);
+  const double particles = static_cast<double>(e.particles), springs = static_cast<double>(e.springs),
+               triangles = static_cast<double>(e.triangles);
+  const double simulation =
+      r.particle * particles + r.spring * springs + kBytesPerTriangle * triangles +
+      (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
+      kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
+  e.bytes = std::max(simulation, builderBytes(particles, springs, triangles, isFloat));
   return e;
 }
 

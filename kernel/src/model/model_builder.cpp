@@ -249,6 +249,8 @@ ModelAndState<S> ModelBuilder<S>::build() {
     state.v(i, 1) = pinned_[i] ? S(0) : static_cast<S>(vy_[i]);
     state.v(i, 2) = pinned_[i] ? S(0) : static_cast<S>(vz_[i]);
   }
+  for (std::vector<double>* a : {&px_, &py_, &pz_, &vx_, &vy_, &vz_, &mass_}) std::vector<double>().swap(*a);
+  std::vector<char>().swap(pinned_);
   Springs<S>& sp = model.springs_;
   take(springA_, sp.a);
   take(springB_, sp.b);

@@ -166,8 +166,9 @@ class ForceField {
   const SpringColouring<S>* colouring_ = nullptr;
   Vec3Array<S> force_;  // (n x 3) accumulated force, N
 
-  // GridStencil: per chunk of rows, a window of family forces, laid out
-  // [chunk][family][axis][window slot], window slot = (row - r0 + halo) * width + column.
+  // GridStencil: per thread, a window of family forces for the chunk of rows it runs,
+  // laid out [thread][family][axis][window slot], window slot = (row - r0 + halo) * width +
+  // column.
   std::vector<S> stencilWindows_;    // N (force on the first endpoint of each spring)
   std::vector<Index> familyOffset_;  // index offset b - a of each family
   Index maxRowOffset_ = 0;           // halo rows

@@ -103,11 +103,12 @@ std::int64_t sceneStepCount(const SceneSpec& scene);
 
 /// What a scene will take, asked before it is assembled: its particle, spring and triangle
 /// counts (cloth grids and ropes from their specs; cloth meshes are not read here and not
-/// counted: `meshBodies` says how many were left out) and the heap the assembled
-/// Simulation holds for them, in bytes, at its precision and integrator. The bytes per
-/// particle, spring and triangle are those measured for weft's own arrays (heap in use
-/// after assembling and one step, which is exactly linear in the three counts); a test
-/// keeps the estimate within 25 % of the peak resident memory of the built-in scenes.
+/// counted: `meshBodies` says how many were left out) and the heap they need at the peak,
+/// in bytes, at its precision and integrator: the larger of what the assembled Simulation
+/// holds (bytes per particle, spring and triangle measured for weft's own arrays: heap in
+/// use after assembling and one step, which is exactly linear in the three counts) and what
+/// building the model holds for a moment (the builder's double arrays beside the Model's).
+/// A test keeps the estimate within 25 % of the peak resident memory of the built-in scenes.
 struct MemoryEstimate {
   std::int64_t particles = 0, springs = 0, triangles = 0;
   std::int64_t rigidBodies = 0;
