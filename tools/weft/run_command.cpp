@@ -593,8 +593,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                           : status.message())
         << "\n"
         << "  state hash   " << hash << "\n"
-        << "  peak memory  " << peakMb << " MB resident (" << estimate / (1024.0 * 1024.0)
-        << " MB estimated before assembling)\n";
+        << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)
+        << " MiB estimated before assembling)\n";
     if (o.resume) out << "  resumed from " << *o.resume << "\n";
     if (o.checkpoint) out << "  checkpoint   " << *o.checkpoint << "\n";
     if (frames)
