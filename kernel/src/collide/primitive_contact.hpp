@@ -26,4 +26,21 @@ PrimitiveContact vertexTriangleContact(const Vec3<double> p[2], const Vec3<doubl
 PrimitiveContact edgeEdgeContact(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
                                  const Vec3<double> b[2], double threshold, double start = 0);
 
+/// The first evaluation of either query from start = 0, on its own: the distance at s = 0
+/// and the square of the Lipschitz bound's core. A pass that has many queries to make takes
+/// this look at all of them first (independent work the processor overlaps, where one query
+/// after another is a chain of dependent loads, square roots and branches), and makes the
+/// full query only for those `firstLookProvesApart` leaves open: for the others the full
+/// query would return no hit from the same two numbers.
+struct FirstLook {
+  double distance = 0;
+  double lipschitz2 = 0;
+};
+FirstLook vertexTriangleFirstLook(const Vec3<double> p[2], const Vec3<double> a[2], const Vec3<double> b[2],
+                                  const Vec3<double> c[2]);
+FirstLook edgeEdgeFirstLook(const Vec3<double> p[2], const Vec3<double> q[2], const Vec3<double> a[2],
+                            const Vec3<double> b[2]);
+/// True when the query from start = 0 at this threshold returns no hit at its first step.
+bool firstLookProvesApart(const FirstLook& look, double threshold);
+
 }  // namespace weft
