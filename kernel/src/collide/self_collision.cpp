@@ -221,6 +221,57 @@ bool firstLookProvesApart(const FirstLook& look, double threshold) {
   return !(look.distance < threshold) && provenApart(look.distance, look.lipschitz2, threshold, 0.0);
 }
 
+namespace {
+constexpr int kBatch = 32;  // primitive pairs whose first looks are taken together
+
+/// The first looks of up to kBatch edge-edge queries at once, in structure of arrays: x[i][a][k]
+/// is coordinate a of vertex i (p, q, a, b) of query k at s = 0, and d[i][a][k] its
+/// displacement over the chunk. The arithmetic of edgeEdgeAt at s = 0 (Ericson's closest
+/// points of two segments, 5.1.9) and of lipschitzSquared, without branches so that the
+/// loop vectorises. A segment shorter than closestSegmentSegment's tiny length gets distance
+/// -1: the full query decides.
+void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kBatch], const double (&d)[4][3][kBatch],
+                        double (&distance)[kBatch], double (&lipschitz2)[kBatch]) {
+  constexpr double tiny = 1e-300;
+  for (int k = 0; k < m; ++k) {
+    double d1[3], d2[3], r[3];
+    for (int a = 0; a < 3; ++a) {
+      d1[a] = x[1][a][k] - x[0][a][k];
+      d2[a] = x[3][a][k] - x[2][a][k];
+      r[a] = x[0][a][k] - x[2][a][k];
+    }
+    const double A = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2];
+    const double E = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2];
+    const double F = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2];
+    const double C = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2];
+    const double B = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2];
+    const double denom = A * E - B * B;
+    const double s0 = denom > 0 ? std::clamp((B * F - C * E) / denom, 0.0, 1.0) : 0.0;
+    const double t0 = (B * s0 + F) / E;
+    const double sLow = std::clamp(-C / A, 0.0, 1.0), sHigh = std::clamp((B - C) / A, 0.0, 1.0);
+    const double s = t0 < 0 ? sLow : (t0 > 1 ? sHigh : s0);
+    const double t = t0 < 0 ? 0.0 : (t0 > 1 ? 1.0 : t0);
+    double g2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double g = (x[0][a][k] + s * d1[a]) - (x[2][a][k] + t * d2[a]);
+      g2 += g * g;
+    }
+    distance[k] = A <= tiny || E <= tiny ? -1.0 : std::sqrt(g2);
+    double L2 = 0;
+    for (int i = 0; i < 2; ++i)
+      for (int j = 2; j < 4; ++j) {
+        double l2 = 0;
+        for (int a = 0; a < 3; ++a) {
+          const double dd = d[i][a][k] - d[j][a][k];
+          l2 += dd * dd;
+        }
+        L2 = std::max(L2, l2);
+      }
+    lipschitz2[k] = L2;
+  }
+}
+}  // namespace
+
 PrimitiveContact vertexTriangleContact(const V p[2], const V a[2], const V b[2], const V c[2], double threshold,
                                        double start) {
   const auto eval = [&](double s, V& gap, double* weights) { return vertexTriangleAt(p, a, b, c, s, gap, weights); };
@@ -384,8 +435,10 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     V p[4][2];
     FirstLook look;
   };
-  constexpr int kBatch = 32;
   std::array<Pending, kBatch> batch;
+  // The batch's positions at s = 0 and displacements again, in structure of arrays, for the
+  // edge-edge first looks.
+  double soaX[4][3][kBatch], soaD[4][3][kBatch], eeDistance[kBatch], eeLipschitz2[kBatch];
   // The full advancement on a primitive pair the first look left open; a contact goes to the
   // block's list.
   const auto test = [&](const Pending& pending) {
@@ -429,10 +482,11 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // triangle pairs had one, are what testing them one by one gives.
   int m = 0;
   const auto flush = [&] {
+    edgeEdgeFirstLooks(m, soaX, soaD, eeDistance, eeLipschitz2);
     for (int k = 0; k < m; ++k) {
       Pending& e = batch[static_cast<size_t>(k)];
       e.look = e.vertexTriangle ? vertexTriangleFirstLook(e.p[0], e.p[1], e.p[2], e.p[3])
-                                : edgeEdgeFirstLook(e.p[0], e.p[1], e.p[2], e.p[3]);
+                                : FirstLook{eeDistance[k], eeLipschitz2[k]};
     }
     for (int k = 0; k < m; ++k) {
       const Pending& e = batch[static_cast<size_t>(k)];
@@ -479,6 +533,10 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
       for (int i = 0; i < 4; ++i) {
         pending.p[i][0] = V(c0[0][v[i]], c0[1][v[i]], c0[2][v[i]]);
         pending.p[i][1] = V(c1[0][v[i]], c1[1][v[i]], c1[2][v[i]]);
+        for (int a = 0; a < 3; ++a) {
+          soaX[i][a][m - 1] = pending.p[i][0][a];
+          soaD[i][a][m - 1] = pending.p[i][1][a] - pending.p[i][0][a];
+        }
       }
     }
   }
