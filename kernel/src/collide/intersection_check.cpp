@@ -107,7 +107,12 @@ class IntersectionCheck {
         keys_[static_cast<size_t>(t)] = (std::uint64_t(code) << 32) | std::uint32_t(t);
       }
     });
-    exec_.run([&] { tbb::parallel_sort(keys_.begin(), keys_.end()); });  // keys are distinct
+    // Keys are distinct, so the order is the same however they are sorted. (One thread:
+    // std::sort on the calling thread; parallel_sort outside the arena would use all.)
+    if (exec_.threadCount() == 1)
+      std::sort(keys_.begin(), keys_.end());
+    else
+      exec_.run([&] { tbb::parallel_sort(keys_.begin(), keys_.end()); });
     leaves_ = Executor::blockCount(n_, kLeafTriangles);
     width_ = static_cast<Index>(std::bit_ceil(static_cast<std::uint64_t>(leaves_)));
   }
