@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -225,6 +226,83 @@ TEST(SelfCollisionQuery, NeverMissesATouchingPair) {
             << " reported, " << misses << " missed, " << falsePositives
             << " false positives (reported, minimum distance above the threshold), " << capped << " capped\n";
   RecordProperty("false_positives", falsePositives);
+}
+
+// The pass takes the edge-edge first looks in batches (structure of arrays, no branches) and
+// skips the full query where the batched look proves a pair apart: that must never happen
+// where the one-by-one look would not prove it. The values agree to rounding, and to 2e-8
+// relative for nearly parallel edges (ill-conditioned closest points); with the guard band
+// of batchedLook a batched proof is a one-by-one proof at every threshold tried, including
+// thresholds at and next to the pair's own distance. Queries: the degenerate ones, small
+// integer grids (parallel, collinear and touching edges abound), random ones, nearly
+// parallel ones, zero-length edges (left to the full query).
+TEST(SelfCollisionQuery, ABatchedFirstLookProvesOnlyWhatTheOneByOneLookProves) {
+  std::vector<Query> queries;
+  for (const Query& q : degenerateQueries())
+    if (!q.vertexTriangle) queries.push_back(q);
+  std::mt19937_64 rng(20261126);
+  std::uniform_int_distribution<int> grid(-4, 4);
+  std::uniform_real_distribution<double> real(-1, 1), tiny(-1e-9, 1e-9);
+  for (int k = 0; k < 4000; ++k) {
+    Query q;
+    q.vertexTriangle = false;
+    const int kind = k % 4;
+    for (auto& vertex : q.x)
+      for (V& p : vertex) p = kind < 2 ? V(grid(rng), grid(rng), grid(rng)) * 0.25 : V(real(rng), real(rng), real(rng));
+    if (kind == 3) {  // nearly parallel: the second edge is the first shifted, tilted by ~1e-9
+      const V shift(real(rng), real(rng), real(rng));
+      for (int s = 0; s < 2; ++s) {
+        q.x[2][s] = q.x[0][s] + shift;
+        q.x[3][s] = q.x[1][s] + shift + V(tiny(rng), tiny(rng), tiny(rng));
+      }
+    }
+    if (k % 3 != 0)  // slow motion against the distances, as at rest: the looks prove pairs apart
+      for (auto& vertex : q.x) vertex[1] = vertex[0] + 1e-3 * (vertex[1] - vertex[0]);
+    if (k % 50 == 0) q.x[1][0] = q.x[0][0];  // a zero-length edge at s = 0
+    queries.push_back(q);
+  }
+  int compared = 0, leftToTheQuery = 0, proofs = 0;
+  double worst = 0;
+  for (size_t first = 0; first < queries.size(); first += kFirstLookBatch) {
+    const int count = static_cast<int>(std::min<size_t>(kFirstLookBatch, queries.size() - first));
+    double x[4][3][kFirstLookBatch], d[4][3][kFirstLookBatch], distance[kFirstLookBatch], lipschitz2[kFirstLookBatch];
+    for (int k = 0; k < count; ++k)
+      for (int i = 0; i < 4; ++i)
+        for (int a = 0; a < 3; ++a) {
+          x[i][a][k] = queries[first + k].x[i][0][a];
+          d[i][a][k] = queries[first + k].x[i][1][a] - queries[first + k].x[i][0][a];
+        }
+    edgeEdgeFirstLooks(count, x, d, distance, lipschitz2);
+    for (int k = 0; k < count; ++k) {
+      const Query& q = queries[first + k];
+      const FirstLook one = edgeEdgeFirstLook(q.x[0], q.x[1], q.x[2], q.x[3]);
+      if (distance[k] == -1) {  // left to the full query: an edge of squared length <= 1e-300
+        ++leftToTheQuery;
+        EXPECT_TRUE((q.x[1][0] - q.x[0][0]).squaredNorm() <= 1e-300 || (q.x[3][0] - q.x[2][0]).squaredNorm() <= 1e-300)
+            << "query " << first + k;
+        continue;
+      }
+      ++compared;
+      if (one.distance > 0) worst = std::max(worst, std::abs(distance[k] - one.distance) / one.distance);
+      EXPECT_LE(std::abs(lipschitz2[k] - one.lipschitz2), 4.5e-16 * one.lipschitz2) << "query " << first + k;
+      const FirstLook batched = batchedLook(distance[k], lipschitz2[k]);
+      for (const double scale : {0.25, 0.5, 0.999999, 1 - 1e-9, 1.0, 1 + 1e-9, 1.000001, 1.5, 1.9999999, 2.0, 4.0}) {
+        const double threshold = scale * one.distance;
+        if (!(threshold > 0)) continue;
+        if (!firstLookProvesApart(batched, threshold)) continue;
+        ++proofs;
+        EXPECT_TRUE(firstLookProvesApart(one, threshold))
+            << "query " << first + k << ", threshold " << threshold << ": the batched look proves it apart, "
+            << "the one-by-one look does not";
+      }
+    }
+  }
+  std::cout << "[ batched first looks ] " << compared << " compared (largest relative difference " << worst << "), "
+            << leftToTheQuery << " left to the full query, " << proofs << " batched proofs checked\n";
+  EXPECT_LT(worst, 1e-7);
+  EXPECT_GT(compared, 3900);
+  EXPECT_GT(leftToTheQuery, 50);
+  EXPECT_GT(proofs, 1000);
 }
 
 TEST(SelfCollisionQuery, NoHitProvesHalfTheThreshold) {

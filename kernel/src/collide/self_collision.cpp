@@ -221,17 +221,10 @@ bool firstLookProvesApart(const FirstLook& look, double threshold) {
   return !(look.distance < threshold) && provenApart(look.distance, look.lipschitz2, threshold, 0.0);
 }
 
-namespace {
-constexpr int kBatch = 32;  // primitive pairs whose first looks are taken together
-
-/// The first looks of up to kBatch edge-edge queries at once, in structure of arrays: x[i][a][k]
-/// is coordinate a of vertex i (p, q, a, b) of query k at s = 0, and d[i][a][k] its
-/// displacement over the chunk. The arithmetic of edgeEdgeAt at s = 0 (Ericson's closest
-/// points of two segments, 5.1.9) and of lipschitzSquared, without branches so that the
-/// loop vectorises. A segment shorter than closestSegmentSegment's tiny length gets distance
-/// -1: the full query decides.
-void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kBatch], const double (&d)[4][3][kBatch],
-                        double (&distance)[kBatch], double (&lipschitz2)[kBatch]) {
+// Ericson's closest points of two segments (5.1.9, as detail::closestSegmentSegment) and
+// lipschitzSquared, written without branches (see primitive_contact.hpp).
+void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kFirstLookBatch], const double (&d)[4][3][kFirstLookBatch],
+                        double (&distance)[kFirstLookBatch], double (&lipschitz2)[kFirstLookBatch]) {
   constexpr double tiny = 1e-300;
   for (int k = 0; k < m; ++k) {
     double d1[3], d2[3], r[3];
@@ -270,7 +263,6 @@ void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kBatch], const double (&d
     lipschitz2[k] = L2;
   }
 }
-}  // namespace
 
 PrimitiveContact vertexTriangleContact(const V p[2], const V a[2], const V b[2], const V c[2], double threshold,
                                        double start) {
@@ -435,10 +427,11 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     V p[4][2];
     FirstLook look;
   };
-  std::array<Pending, kBatch> batch;
+  std::array<Pending, kFirstLookBatch> batch;
   // The batch's positions at s = 0 and displacements again, in structure of arrays, for the
   // edge-edge first looks.
-  double soaX[4][3][kBatch], soaD[4][3][kBatch], eeDistance[kBatch], eeLipschitz2[kBatch];
+  double soaX[4][3][kFirstLookBatch], soaD[4][3][kFirstLookBatch], eeDistance[kFirstLookBatch],
+      eeLipschitz2[kFirstLookBatch];
   // The full advancement on a primitive pair the first look left open; a contact goes to the
   // block's list.
   const auto test = [&](const Pending& pending) {
@@ -486,7 +479,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     for (int k = 0; k < m; ++k) {
       Pending& e = batch[static_cast<size_t>(k)];
       e.look = e.vertexTriangle ? vertexTriangleFirstLook(e.p[0], e.p[1], e.p[2], e.p[3])
-                                : FirstLook{eeDistance[k], eeLipschitz2[k]};
+                                : batchedLook(eeDistance[k], eeLipschitz2[k]);
     }
     for (int k = 0; k < m; ++k) {
       const Pending& e = batch[static_cast<size_t>(k)];
@@ -524,7 +517,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
       const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
       if (apartNow(v, q.vertexTriangle ? 1 : 2, thickness * kApart)) continue;
       ++block.tests;
-      if (m == kBatch) flush();
+      if (m == kFirstLookBatch) flush();
       Pending& pending = batch[static_cast<size_t>(m++)];
       pending.v = v;
       pending.vertexTriangle = q.vertexTriangle;
