@@ -236,9 +236,9 @@ class IntersectionCheck {
     }
     std::vector<std::int64_t> counts(front.size(), 0);
     exec_.parallelFor(static_cast<Index>(front.size()), 1, [&](Index begin, Index end) {
-      // A tree has at most 29 levels below the root (2^31 / kLeafTriangles leaves). Each
+      // A tree has at most 28 levels below the root (2^31 / kLeafTriangles leaves). Each
       // expansion takes one task and leaves at most 4, and takes one node or both a level
-      // down: at most 2 x 29 expansions deep, so at most 3 x 58 + 4 tasks pending.
+      // down: at most 2 x 28 expansions deep, so far fewer than 256 tasks pending.
       std::array<Task, 256> stack;
       for (Index k = begin; k < end; ++k) {
         std::int64_t found = 0;

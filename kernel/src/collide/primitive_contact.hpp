@@ -46,21 +46,24 @@ bool firstLookProvesApart(const FirstLook& look, double threshold);
 /// The edge-edge first looks of up to kFirstLookBatch queries at once, in structure of
 /// arrays: x[i][a][k] is coordinate a of vertex i (the edges p q and a b) of query k at s = 0,
 /// d[i][a][k] its displacement over the chunk. The formulas of edgeEdgeFirstLook, computed
-/// without branches so that the loop vectorises; a query with an edge shorter than the
-/// closest-point routine's tiny length gets distance -1 (its full query decides). The values
-/// are not always the same bits: the compiler fuses other products than in the one-by-one
-/// routine, and the closest points of nearly parallel edges are ill-conditioned (a test
-/// measures up to 2e-8 relative there, the Lipschitz core within an ulp). batchedLook() adds
-/// the guard band that makes a proof from these values also a proof for the one-by-one look.
+/// without branches so that the loop vectorises; lengths[k] is the sum of the two edges'
+/// lengths. A query with an edge shorter than the closest-point routine's tiny length, or
+/// with a coordinate or displacement that is not finite, gets distance -1 (its full query
+/// decides). The values are not always the same bits as one by one: the compiler fuses other
+/// products, and the closest points of nearly parallel edges are ill-conditioned (the two
+/// routines may then take different ends, a distance apart of at most about the edges'
+/// length times the angle between them, itself ~1e-8 at most there). batchedLook() adds the
+/// guard band that makes a proof from these values a proof for the one-by-one look.
 inline constexpr int kFirstLookBatch = 32;
 void edgeEdgeFirstLooks(int count, const double (&x)[4][3][kFirstLookBatch], const double (&d)[4][3][kFirstLookBatch],
-                        double (&distance)[kFirstLookBatch], double (&lipschitz2)[kFirstLookBatch]);
-/// A batched edge-edge look as the pass uses it: the distance shrunk by a relative 1e-6 and
-/// the Lipschitz core grown by 1e-12, so that firstLookProvesApart on it implies the same for
-/// the one-by-one look whenever the two agree that closely (pairs within the band go to
-/// the full query, which decides as it always did).
-inline FirstLook batchedLook(double distance, double lipschitz2) {
-  return {distance * (1 - 1e-6), lipschitz2 * (1 + 1e-12)};
+                        double (&distance)[kFirstLookBatch], double (&lipschitz2)[kFirstLookBatch],
+                        double (&lengths)[kFirstLookBatch]);
+/// A batched edge-edge look as the pass uses it: the distance shrunk by a relative 1e-6 and by
+/// 1e-7 of the edges' lengths, the Lipschitz core grown by 1e-12, so that
+/// firstLookProvesApart on it implies the same for the one-by-one look (pairs within the band
+/// go to the full query, which decides as it always did).
+inline FirstLook batchedLook(double distance, double lipschitz2, double lengths) {
+  return {distance * (1 - 1e-6) - 1e-7 * lengths, lipschitz2 * (1 + 1e-12)};
 }
 
 }  // namespace weft

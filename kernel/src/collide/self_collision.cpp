@@ -224,7 +224,8 @@ bool firstLookProvesApart(const FirstLook& look, double threshold) {
 // Ericson's closest points of two segments (5.1.9, as detail::closestSegmentSegment) and
 // lipschitzSquared, written without branches (see primitive_contact.hpp).
 void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kFirstLookBatch], const double (&d)[4][3][kFirstLookBatch],
-                        double (&distance)[kFirstLookBatch], double (&lipschitz2)[kFirstLookBatch]) {
+                        double (&distance)[kFirstLookBatch], double (&lipschitz2)[kFirstLookBatch],
+                        double (&lengths)[kFirstLookBatch]) {
   constexpr double tiny = 1e-300;
   for (int k = 0; k < m; ++k) {
     double d1[3], d2[3], r[3];
@@ -249,7 +250,13 @@ void edgeEdgeFirstLooks(int m, const double (&x)[4][3][kFirstLookBatch], const d
       const double g = (x[0][a][k] + s * d1[a]) - (x[2][a][k] + t * d2[a]);
       g2 += g * g;
     }
-    distance[k] = A <= tiny || E <= tiny ? -1.0 : std::sqrt(g2);
+    // (A sum of every input is finite only if each is: NaN and infinities propagate, and
+    // std::max below would drop a NaN from the Lipschitz core.)
+    double all = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int a = 0; a < 3; ++a) all += x[i][a][k] + d[i][a][k];
+    distance[k] = A <= tiny || E <= tiny || !std::isfinite(all) ? -1.0 : std::sqrt(g2);
+    lengths[k] = std::sqrt(A) + std::sqrt(E);
     double L2 = 0;
     for (int i = 0; i < 2; ++i)
       for (int j = 2; j < 4; ++j) {
@@ -431,7 +438,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // The batch's positions at s = 0 and displacements again, in structure of arrays, for the
   // edge-edge first looks.
   double soaX[4][3][kFirstLookBatch], soaD[4][3][kFirstLookBatch], eeDistance[kFirstLookBatch],
-      eeLipschitz2[kFirstLookBatch];
+      eeLipschitz2[kFirstLookBatch], eeLengths[kFirstLookBatch];
   // The full advancement on a primitive pair the first look left open; a contact goes to the
   // block's list.
   const auto test = [&](const Pending& pending) {
@@ -475,11 +482,11 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // triangle pairs had one, are what testing them one by one gives.
   int m = 0;
   const auto flush = [&] {
-    edgeEdgeFirstLooks(m, soaX, soaD, eeDistance, eeLipschitz2);
+    edgeEdgeFirstLooks(m, soaX, soaD, eeDistance, eeLipschitz2, eeLengths);
     for (int k = 0; k < m; ++k) {
       Pending& e = batch[static_cast<size_t>(k)];
       e.look = e.vertexTriangle ? vertexTriangleFirstLook(e.p[0], e.p[1], e.p[2], e.p[3])
-                                : batchedLook(eeDistance[k], eeLipschitz2[k]);
+                                : batchedLook(eeDistance[k], eeLipschitz2[k], eeLengths[k]);
     }
     for (int k = 0; k < m; ++k) {
       const Pending& e = batch[static_cast<size_t>(k)];

@@ -181,12 +181,16 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
       // streams 36 of them at once, and at power-of-two strides they would all compete
       // for the same L1 set (measured 2.3x slower at 256^2 in double).
       const Index perLine = static_cast<Index>(64 / sizeof(S));
-      windowSize_ = (chunkRows_ + maxRowOffset_) * g.width;
+      // One slot more than a chunk's rows: a family reaching the halo's full depth and a
+      // column right (the shear spring (1, 1) on a grid without bend springs) reads one slot
+      // before its array for a chunk's first particle, which must then be this never-written
+      // (zero) padding slot of the array before, not a force.
+      windowSize_ = (chunkRows_ + maxRowOffset_) * g.width + 1;
       windowSize_ = (windowSize_ + perLine - 1) / perLine * perLine;
       const Index perPage = static_cast<Index>(4096 / sizeof(S));
       windowSize_ += ((5 * perLine - windowSize_ % perPage) % perPage + perPage) % perPage;
-      // The windows themselves, one per thread, are made by the first pass (which knows the
-      // executor's thread count).
+      // The windows themselves, one per thread, are made by reserve() or the first pass (which
+      // know the executor's thread count).
       break;
     }
     case ForceStrategy::Auto:
@@ -196,6 +200,20 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
 
 template <class S>
 ForceField<S>::~ForceField() = default;
+
+template <class S>
+size_t ForceField<S>::stencilWindowCount(const Executor& exec) const {
+  const bool serial = exec.threadCount() == 1 || Executor::blockCount(model_->grid()->height, chunkRows_) == 1;
+  return serial ? 1 : static_cast<size_t>(exec.threadCount());
+}
+
+template <class S>
+void ForceField<S>::reserve(const Executor& exec) {
+  if (strategy_ != ForceStrategy::GridStencil) return;
+  const size_t perWindow = model_->grid()->families.size() * 3 * static_cast<size_t>(windowSize_);
+  const size_t size = stencilWindowCount(exec) * perWindow;
+  if (stencilWindows_.size() < size) stencilWindows_.assign(size, S(0));
+}
 
 template <class S>
 void ForceField<S>::accelerations(const Vec3Array<S>& x, const Vec3Array<S>& v, const AccelerationSink<S>& sink,
@@ -316,12 +334,12 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
   // not depend on how chunks are scheduled, and the window never leaves this core's cache.
   // A window per thread, not per chunk: a thread runs one chunk at a time, and each chunk
   // writes every slot its gather reads (the family forces, and zero where there is no
-  // spring), so what a window held before does not matter. Made by the first pass, and again
-  // only if a later pass comes with more threads.
+  // spring), so what a window held before does not matter. Made by reserve() (a Simulation
+  // calls it when built) or else by the first pass, and again only for more threads.
   const size_t perWindow = static_cast<size_t>(familyCount) * 3 * static_cast<size_t>(windowSize_);
-  const bool serial = exec.threadCount() == 1 || Executor::blockCount(H, chunkRows_) == 1;
-  const size_t slots = serial ? 1 : static_cast<size_t>(exec.threadCount());
-  if (stencilWindows_.size() < slots * perWindow) stencilWindows_.assign(slots * perWindow, S(0));
+  const size_t slots = stencilWindowCount(exec);
+  const bool serial = slots == 1;
+  reserve(exec);
   exec.parallelFor(H, chunkRows_, [&](Index r0, Index r1) {
     // The thread's slot in the executor's arena; the serial path (one thread or one chunk)
     // may run outside it and uses window 0.

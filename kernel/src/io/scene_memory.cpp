@@ -44,7 +44,8 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
 // While the model is built, the builder's arrays (in double: 7 values and a pin flag per
 // particle, 33 bytes per spring, 12 per triangle) and the Model's particle arrays and state
 // (8 values of the precision) are alive at once, and the Model's first spring array and
-// triangles are made beside them: for a cloth of mostly springs this, not the
+// triangles are made beside them (the builder's particle arrays are freed before the
+// springs are converted, so this slightly overcounts): for a cloth of mostly springs this, not the
 // Simulation, can be the run's peak (the 256^2 flag in float: 21.8 MB by this count, 20.7
 // MB measured).
 double builderBytes(double particles, double springs, double triangles, bool isFloat) {

@@ -31,7 +31,9 @@
 // L1: an integrator combines them into its next stage state in the same pass (no
 // acceleration buffer written and read back, one parallel pass per stage instead of two).
 //
-// All scratch buffers are sized in the constructor; accelerations() never allocates.
+// All scratch buffers are sized in the constructor, except the grid stencil's windows (one
+// per thread of the executor): reserve(exec) makes those, as a Simulation does when it is
+// built; otherwise the first pass does. After that, accelerations() never allocates.
 #pragma once
 
 #include <atomic>
@@ -94,6 +96,9 @@ class ForceField {
   /// (naming the field and the value).
   ForceField(const Model<S>& model, ForceStrategy strategy, const Vec3d& gravity, const ParticleEffects& effects = {});
   ~ForceField();
+  /// Makes the scratch that passes on `exec` will need (the grid stencil's windows, one per
+  /// thread), so that no pass with at most as many threads allocates.
+  void reserve(const Executor& exec);
   ForceField(const ForceField&) = delete;
   ForceField& operator=(const ForceField&) = delete;
   const ParticleEffects& effects() const { return effects_; }
@@ -174,6 +179,8 @@ class ForceField {
   Index maxRowOffset_ = 0;           // halo rows
   Index chunkRows_ = 0;
   Index windowSize_ = 0;  // slots per family and axis
+  // Windows the stencil pass on `exec` uses: 1 when it runs serially, else one per thread.
+  size_t stencilWindowCount(const Executor& exec) const;
 };
 
 extern template class ForceField<float>;
