@@ -31,13 +31,15 @@ class SelfCollider {
                              double h, const Executor& exec);
 
   const SelfCollisionOptions& options() const { return options_; }
-  /// The skin, m (see the design note).
+  /// The skin, m (see the design note): the least a vertex's skin box extends beyond its
+  /// chunk; a vertex the response moved in the last chunk gets more (kPush).
   double skin() const { return skin_; }
   /// Triangle pairs in the current candidate list.
   Index candidateCount() const { return static_cast<Index>(pairs_.size()); }
 
-  /// Checkpoints: the candidate list and the skin boxes it was gathered for (a list gathered
-  /// at another time would cull other pairs, so a resumed run keeps this one).
+  /// Checkpoints: the candidate list, the skin boxes it was gathered for and the last
+  /// chunk's pushes (a list gathered at another time would cull other pairs, so a resumed run keeps
+  /// this one, and gathers when the uninterrupted run would).
   void saveCarry(ArchiveWriter& out) const;
   void loadCarry(ArchiveReader& in);
 
@@ -94,6 +96,9 @@ class SelfCollider {
   /// The normal cones of every BVH node for vertices anywhere in their skin boxes, and the
   /// flat regions (flat_) among the connected nodes.
   void findFlatRegions(const Executor& exec);
+  /// resolve's passes and failsafe.
+  void resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
+                     const Executor& exec, SelfCollisionStats& stats);
   /// Gauss-Seidel over the contacts found, in block order; returns the largest
   /// displacement of a vertex (m, as stored).
   double respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h, SelfCollisionStats& stats);
@@ -105,6 +110,11 @@ class SelfCollider {
   /// With flat regions culled, the skin is at most this share of the shortest triangle edge
   /// (a corner moving 5 % of an edge turns a triangle's normal by at most ~25 degrees).
   static constexpr double kConeSkin = 0.05;
+  /// A vertex the response moved by p (per axis, signed) in the last chunk gets a skin box
+  /// kPush |p| longer on that side of that axis, at most its thickness longer: a resting
+  /// fold's vertices are pushed about as far every chunk, and a box that covers the push
+  /// keeps the candidates gathered at the chunk's start valid for its later passes.
+  static constexpr double kPush = 1.5;
 
   const Model<S>* model_;
   SelfCollisionOptions options_;
@@ -116,11 +126,14 @@ class SelfCollider {
   Index blocksUsed_ = 0;
   std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
   std::vector<double> displacement_;       // (n) m, moved by the current response pass
+  std::vector<double> push_;               // (3n, vertex-major) m, the last chunk's response moved x1 by this
+  Vec3Array<S> unpushed_;                  // (n x 3) x1 before this chunk's response
   std::vector<double> thickness_;          // (n) m, each particle's cloth's thickness
   std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
   double thinnest_ = 0;                    // m, the least thickness of a particle
   double skin_ = 0;                        // m
   Vec3Array<S> skinLo_, skinHi_;           // (n x 3) each vertex's skin box
+  std::vector<Aabb<S>> skinBox_;           // (n) the same, one box per vertex (read by index)
   std::vector<Aabb<S>> triangleBox_;       // (triangles) each triangle's box over the chunk
   std::vector<std::uint8_t> connected_;    // (nodes) the node's triangles are edge-connected
   std::vector<std::uint8_t> flat_;         // (nodes) a flat region at the last gathering: not queried

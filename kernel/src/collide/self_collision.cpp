@@ -366,9 +366,9 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
       Vec3Array<S> layout(model.particleCount(), 3);
       for (Index i = 0; i < model.particleCount(); ++i)
         layout.row(i) << static_cast<S>(i % grid->width), static_cast<S>(i / grid->width), S(0);
-      bvh_.build(layout, model.triangles(), exec, 0.5 * thickest + skin_);
+      bvh_.build(layout, model.triangles(), exec, 0.5 * thickest);
     } else {
-      bvh_.build(x, model.triangles(), exec, 0.5 * thickest + skin_);
+      bvh_.build(x, model.triangles(), exec, 0.5 * thickest);
     }
     if (options_.cullFlatRegions && triangles > 1) {
       findConnectedNodes();
@@ -379,10 +379,13 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
   }
   frozen_.assign(static_cast<size_t>(model.particleCount()), 0);
   displacement_.assign(static_cast<size_t>(model.particleCount()), 0.0);
+  push_.assign(3 * static_cast<size_t>(model.particleCount()), 0.0);
+  unpushed_.resize(model.particleCount(), 3);
   moved_.assign(static_cast<size_t>(model.particleCount()), 0);
   skinLo_.setZero(model.particleCount(), 3);  // (zero, not undefined: a checkpoint writes them)
   skinHi_.setZero(model.particleCount(), 3);
   sweptBox_.resize(static_cast<size_t>(model.particleCount()));
+  skinBox_.assign(static_cast<size_t>(model.particleCount()), Aabb<S>{});
   triangleBox_.resize(static_cast<size_t>(triangles));
 }
 
@@ -640,6 +643,26 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
                                             const ScalarArray<S>& w, double h, const Executor& exec) {
   SelfCollisionStats stats;
   if (bvh_.triangleCount() < 2) return stats;
+  const Index n = model_->particleCount();
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) unpushed_(i, a) = x1(i, a);
+  });
+  resolvePasses(x0, x1, v1, w, h, exec, stats);
+  // What the response did to each vertex: the next gathering's skin covers as much again (kPush).
+  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i)
+      for (int a = 0; a < 3; ++a)
+        push_[3 * static_cast<size_t>(i) + static_cast<size_t>(a)] =
+            static_cast<double>(x1(i, a)) - static_cast<double>(unpushed_(i, a));
+  });
+  return stats;
+}
+
+template <class S>
+void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
+                                    const ScalarArray<S>& w, double h, const Executor& exec,
+                                    SelfCollisionStats& stats) {
   for (int pass = 0;; ++pass) {
     const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;
@@ -653,7 +676,7 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
       guards = guards || block.guards > 0;
       margin = std::min(margin, block.margin);
     }
-    if (!any) return stats;                      // no pair within the thickness / 2: nothing can intersect
+    if (!any) return;  // no pair within the thickness / 2: nothing can intersect
     margin = std::min(margin, 0.5 * thinnest_);  // (the pairs not in contact: proven >= their thickness / 2)
     if (!last) {
       // Converged: no pair came within its failsafe threshold, so every pair stayed at
@@ -661,7 +684,7 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
       // a quarter of that (a distance changes by at most twice the largest displacement):
       // nothing intersects, and further passes would only move vertices by less.
       const double moved = respond(x1, v1, w, h, stats);
-      if (!guards && 2 * moved < 0.5 * margin) return stats;
+      if (!guards && 2 * moved < 0.5 * margin) return;
       continue;
     }
     break;
@@ -705,7 +728,6 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
     detect(x0, x1, w, exec, stats);
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
   }
-  return stats;
 }
 
 template class SelfCollider<float>;

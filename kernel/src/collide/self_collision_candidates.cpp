@@ -2,6 +2,7 @@
 // still covers a chunk, gathering it (the BVH query with flat regions culled), the
 // primitive pairs of each triangle pair, and its place in checkpoints.
 #include <algorithm>
+#include <cmath>
 #include <initializer_list>
 #include <limits>
 #include <span>
@@ -34,15 +35,19 @@ template <class S>
 void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                                        SelfCollisionStats& stats) {
   const Index n = model_->particleCount();
-  const S skin = static_cast<S>(skin_);
   exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
-    for (int a = 0; a < 3; ++a)
-      for (Index i = begin; i < end; ++i) {
-        skinLo_(i, a) = std::min(x0(i, a), x1(i, a)) - skin;
-        skinHi_(i, a) = std::max(x0(i, a), x1(i, a)) + skin;
+    for (Index i = begin; i < end; ++i) {
+      const double cap = thickness_[static_cast<size_t>(i)];
+      for (int a = 0; a < 3; ++a) {
+        const double push = kPush * push_[3 * static_cast<size_t>(i) + static_cast<size_t>(a)];
+        skinLo_(i, a) = std::min(x0(i, a), x1(i, a)) - static_cast<S>(skin_ + std::min(cap, std::max(0.0, -push)));
+        skinHi_(i, a) = std::max(x0(i, a), x1(i, a)) + static_cast<S>(skin_ + std::min(cap, std::max(0.0, push)));
+        skinBox_[static_cast<size_t>(i)].lo[a] = skinLo_(i, a);
+        skinBox_[static_cast<size_t>(i)].hi[a] = skinHi_(i, a);
       }
+    }
   });
-  bvh_.refitSwept(x0, x1, exec);  // margin: half the thickness + the skin
+  bvh_.refitSwept(skinLo_, skinHi_, exec);  // margin: half the thickness
   const bool cull = !flat_.empty();
   if (cull) findFlatRegions(exec);
   bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
@@ -72,21 +77,27 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
   const Triangles& tr = model_->triangles();
   const SurfaceTopology& topo = model_->surfaceTopology();
   const double* th = thickness_.data();
-  // Whether the skin boxes of two primitives are farther apart than their thickness (then
-  // they cannot come that close while every vertex stays in its skin box).
-  const auto apart = [&](std::initializer_list<Index> first, std::initializer_list<Index> second) {
-    const double thickness = 0.5 * (th[*first.begin()] + th[*second.begin()]);
+  // Whether the skin boxes of two primitives (VT: split 1; EE: split 2) are farther apart
+  // than their thickness (then they cannot come that close while every vertex stays in its
+  // skin box). The boxes' bounds are exact in S; the comparison is in double.
+  const Aabb<S>* box = skinBox_.data();
+  const auto apart = [&](const Index (&v)[4], int split) {
+    const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
     for (int a = 0; a < 3; ++a) {
-      double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
-      for (const Index i : first) {
-        lo1 = std::min(lo1, static_cast<double>(skinLo_(i, a)));
-        hi1 = std::max(hi1, static_cast<double>(skinHi_(i, a)));
+      S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
+      for (int i = 1; i < 3; ++i) {
+        const Aabb<S>& b = box[v[i]];
+        if (i < split) {
+          lo1 = std::min(lo1, b.lo[a]);
+          hi1 = std::max(hi1, b.hi[a]);
+        } else {
+          lo2 = std::min(lo2, b.lo[a]);
+          hi2 = std::max(hi2, b.hi[a]);
+        }
       }
-      for (const Index i : second) {
-        lo2 = std::min(lo2, static_cast<double>(skinLo_(i, a)));
-        hi2 = std::max(hi2, static_cast<double>(skinHi_(i, a)));
-      }
-      if (lo1 > hi2 + thickness || lo2 > hi1 + thickness) return true;
+      if (static_cast<double>(lo1) > static_cast<double>(hi2) + thickness ||
+          static_cast<double>(lo2) > static_cast<double>(hi1) + thickness)
+        return true;
     }
     return false;
   };
@@ -103,7 +114,8 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
       for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
         const Index v = topo.ownedVertices.entries[k];
         if (v == other[0] || v == other[1] || v == other[2]) continue;
-        if (apart({v}, {other[0], other[1], other[2]})) continue;
+        const Index vt[4] = {v, other[0], other[1], other[2]};
+        if (apart(vt, 1)) continue;
         block.primitives.push_back({{v, other[0], other[1], other[2]}, true});
       }
     }
@@ -113,7 +125,8 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
       for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
         const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
         if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
-        if (apart({e[0], e[1]}, {f[0], f[1]})) continue;
+        const Index ee[4] = {e[0], e[1], f[0], f[1]};
+        if (apart(ee, 2)) continue;
         block.primitives.push_back({{e[0], e[1], f[0], f[1]}, false});
       }
     }
@@ -128,6 +141,7 @@ void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
   out.array(skinLo_);
   out.array(skinHi_);
   out.vector(pairs_);
+  out.vector(push_);
 }
 
 template <class S>
@@ -148,6 +162,17 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   }
   if (!((skinLo_.array() <= skinHi_.array()).all() && skinLo_.allFinite() && skinHi_.allFinite()))
     in.fail("the self-collision skin boxes are not finite boxes");
+  for (Index i = 0; i < model_->particleCount(); ++i)
+    for (int a = 0; a < 3; ++a) {
+      skinBox_[static_cast<size_t>(i)].lo[a] = skinLo_(i, a);
+      skinBox_[static_cast<size_t>(i)].hi[a] = skinHi_(i, a);
+    }
+  in.field(push_, "the self-collision pushes");
+  if (push_.size() != 3 * static_cast<size_t>(model_->particleCount()))
+    in.fail("the self-collision pushes: " + std::to_string(push_.size()) + " entries in the file, 3 x " +
+            std::to_string(model_->particleCount()) + " particles in this simulation");
+  if (!std::all_of(push_.begin(), push_.end(), [](double p) { return std::isfinite(p); }))
+    in.fail("the self-collision pushes are not finite");
   useCandidates();
   for (Index k = 0; k < blocksUsed_; ++k) expandBlock(k);
   candidatesValid_ = valid;

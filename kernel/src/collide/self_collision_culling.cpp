@@ -131,8 +131,9 @@ void SelfCollider<S>::findFlatRegions(const Executor& exec) {
       double radius[3];
       for (int k = 0; k < 3; ++k) {
         double r2 = 0;
+        const Aabb<S>& box = skinBox_[static_cast<size_t>(c[k])];
         for (int a = 0; a < 3; ++a) {
-          const double lo = static_cast<double>(skinLo_(c[k], a)), hi = static_cast<double>(skinHi_(c[k], a));
+          const double lo = static_cast<double>(box.lo[a]), hi = static_cast<double>(box.hi[a]);
           centre[k][a] = 0.5 * (lo + hi);
           r2 += 0.25 * (hi - lo) * (hi - lo);
         }

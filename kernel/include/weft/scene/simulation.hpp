@@ -182,7 +182,7 @@ class Simulation {
   std::string checkpoint() const;
   void restore(std::string_view bytes, const std::string& source = "memory");
   /// The format version of checkpoint files this build writes and reads.
-  static constexpr std::uint32_t kCheckpointFormat = 2;  // 2: the self-collision section
+  static constexpr std::uint32_t kCheckpointFormat = 3;  // 2: the self-collision section; 3: its pushes
 
  private:
   std::shared_ptr<const Model<S>> model_;
