@@ -485,6 +485,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["self_collision"] = {{"thickness", self.thickness},
                              {"cull_flat_regions", self.cullFlatRegions},
                              {"passes", t.passes},
+                             {"gatherings", t.rebuilds},
                              {"candidates", t.candidates},
                              {"tests", t.tests},
                              {"vertex_triangle_contacts", t.vertexTriangle},

@@ -274,19 +274,7 @@ void TriangleBvh<S>::refitWith(const LeafBox& leafBox, const Executor& exec) {
     node.box[1] = b1;
     boxes[q] = merged(b0, b1);
   };
-  exec.parallelFor(static_cast<Index>(subtrees_.size()), 1, [&](Index b, Index e) {
-    for (Index k = b; k < e; ++k) {
-      const Subtree& tree = subtrees_[static_cast<size_t>(k)];
-      for (Index s = tree.firstSlot; s <= tree.lastSlot; ++s) leaves[s] = leafBox(s);
-      for (Index q = tree.node + (tree.lastSlot - tree.firstSlot) - 1; q >= tree.node; --q) refitNode(q);
-    }
-  });
-  for (auto it = topNodes_.rbegin(); it != topNodes_.rend(); ++it) {
-    const BvhNode<S>& node = nodes[*it];
-    for (int c = 0; c < 2; ++c)
-      if (node.child[c] < 0) leaves[~node.child[c]] = leafBox(~node.child[c]);
-    refitNode(*it);
-  }
+  bottomUp(exec, [&](Index s) { leaves[s] = leafBox(s); }, refitNode);
   rootBox_ = boxes[0];
 }
 

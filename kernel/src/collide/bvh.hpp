@@ -205,6 +205,12 @@ class TriangleBvh {
   Index depth() const { return depth_; }
   Index subtreeCount() const { return static_cast<Index>(subtrees_.size()); }
 
+  /// Calls leaf(slot) for every slot and node(q) for every internal node q, each once, a
+  /// node after its children: the subtrees of the build as parallel tasks, then the nodes
+  /// above them in one (the order of a refit). For 2 or more triangles.
+  template <class Leaf, class Node>
+  void bottomUp(const Executor& exec, const Leaf& leaf, const Node& node) const;
+
   /// Calls f(triangle) for every triangle whose leaf box (with the margin) overlaps `box`,
   /// each once, in an order fixed by the tree. Allocates nothing; f may stop nothing.
   template <class F>
@@ -274,6 +280,24 @@ class TriangleBvh {
 
 extern template class TriangleBvh<float>;
 extern template class TriangleBvh<double>;
+
+template <class S>
+template <class Leaf, class Node>
+void TriangleBvh<S>::bottomUp(const Executor& exec, const Leaf& leaf, const Node& node) const {
+  exec.parallelFor(static_cast<Index>(subtrees_.size()), 1, [&](Index b, Index e) {
+    for (Index k = b; k < e; ++k) {
+      const Subtree& tree = subtrees_[static_cast<size_t>(k)];
+      for (Index s = tree.firstSlot; s <= tree.lastSlot; ++s) leaf(s);
+      // (A subtree's nodes follow its root in pre-order, one fewer than its leaves.)
+      for (Index q = tree.node + (tree.lastSlot - tree.firstSlot) - 1; q >= tree.node; --q) node(q);
+    }
+  });
+  for (auto it = topNodes_.rbegin(); it != topNodes_.rend(); ++it) {
+    for (const Index c : nodes_[static_cast<size_t>(*it)].child)
+      if (c < 0) leaf(~c);
+    node(*it);
+  }
+}
 
 template <class S>
 template <class F>

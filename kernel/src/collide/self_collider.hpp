@@ -3,6 +3,7 @@
 // weft/collide/self_collision.hpp. Not installed: a Simulation owns its SelfCollider.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -75,8 +76,13 @@ class SelfCollider {
     double axis[3];
     double cos, sin;
   };
-  /// Whether every vertex's x0 and x1 lie in its skin box (then the candidates cover the chunk).
+  /// Whether every vertex's x0 and x1 lie in its skin box, or do once the same offset (the
+  /// centroid's motion since the gathering) is taken from all of them: then the candidates
+  /// cover the chunk (distances, and so the pairs listed and the flat regions culled, do
+  /// not change when every vertex moves by the same vector).
   bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
+  /// The mean of x's rows, summed in a fixed order.
+  std::array<double, 3> centroid(const Vec3Array<S>& x, const Executor& exec);
   /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates.
   void gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                         SelfCollisionStats& stats);
@@ -144,6 +150,8 @@ class SelfCollider {
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
   std::vector<std::uint8_t> blockFlags_;
+  std::vector<std::array<double, 3>> blockSums_;      // (vertex blocks) scratch of centroid
+  std::array<double, 3> gatheredCentroid_{0, 0, 0};  // m, x1's centroid at the last gathering
 };
 
 extern template class SelfCollider<float>;

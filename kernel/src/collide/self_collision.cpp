@@ -386,6 +386,8 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
   skinHi_.setZero(model.particleCount(), 3);
   sweptBox_.resize(static_cast<size_t>(model.particleCount()));
   skinBox_.assign(static_cast<size_t>(model.particleCount()), Aabb<S>{});
+  blockSums_.resize(static_cast<size_t>(Executor::blockCount(model.particleCount(), kVertexGrain)));
+  blockFlags_.reserve(blockSums_.size());
   triangleBox_.resize(static_cast<size_t>(triangles));
 }
 

@@ -2,6 +2,7 @@
 // still covers a chunk, gathering it (the BVH query with flat regions culled), the
 // primitive pairs of each triangle pair, and its place in checkpoints.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <initializer_list>
 #include <limits>
@@ -14,10 +15,30 @@
 namespace weft {
 
 template <class S>
+std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>& x, const Executor& exec) {
+  const Index n = model_->particleCount();
+  exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
+    for (int a = 0; a < 3; ++a) {
+      double sum = 0;
+      for (Index i = begin; i < end; ++i) sum += static_cast<double>(x(i, a));
+      blockSums_[static_cast<size_t>(k)][static_cast<size_t>(a)] = sum;
+    }
+  });
+  std::array<double, 3> c{0, 0, 0};
+  for (Index k = 0; k < Executor::blockCount(n, kVertexGrain); ++k)  // (in block order: the same bits on any thread count)
+    for (int a = 0; a < 3; ++a) c[static_cast<size_t>(a)] += blockSums_[static_cast<size_t>(k)][static_cast<size_t>(a)];
+  for (double& v : c) v /= static_cast<double>(n);
+  return c;
+}
+
+template <class S>
 bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec) {
   if (!candidatesValid_) return false;
   const Index n = model_->particleCount();
   const Index blocks = Executor::blockCount(n, kVertexGrain);
+  const auto everyBlock = [&] {
+    return std::all_of(blockFlags_.begin(), blockFlags_.end(), [](std::uint8_t f) { return f != 0; });
+  };
   blockFlags_.assign(static_cast<size_t>(blocks), 1);
   exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
     bool inside = true;
@@ -28,7 +49,27 @@ bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>
       }
     blockFlags_[static_cast<size_t>(k)] = inside ? 1 : 0;
   });
-  return std::all_of(blockFlags_.begin(), blockFlags_.end(), [](std::uint8_t f) { return f != 0; });
+  if (everyBlock()) return true;
+  // Then with an offset o(s) = o0 + s (o1 - o0) taken from every vertex: how far the
+  // centroid has moved since the gathering's chunk ended (a cloth that falls or is carried
+  // keeps its list).
+  const std::array<double, 3> c0 = centroid(x0, exec), c1 = centroid(x1, exec);
+  double o0[3], o1[3];
+  for (int a = 0; a < 3; ++a) {
+    o0[a] = c0[static_cast<size_t>(a)] - gatheredCentroid_[static_cast<size_t>(a)];
+    o1[a] = c1[static_cast<size_t>(a)] - gatheredCentroid_[static_cast<size_t>(a)];
+  }
+  exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a)
+      for (Index i = begin; i < end; ++i) {
+        const double lo = static_cast<double>(skinLo_(i, a)), hi = static_cast<double>(skinHi_(i, a));
+        const double y0 = static_cast<double>(x0(i, a)) - o0[a], y1 = static_cast<double>(x1(i, a)) - o1[a];
+        inside = inside && y0 >= lo && y0 <= hi && y1 >= lo && y1 <= hi;
+      }
+    blockFlags_[static_cast<size_t>(k)] = inside ? 1 : 0;
+  });
+  return everyBlock();
 }
 
 template <class S>
@@ -48,6 +89,7 @@ void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
     }
   });
   bvh_.refitSwept(skinLo_, skinHi_, exec);  // margin: half the thickness
+  gatheredCentroid_ = centroid(x1, exec);
   const bool cull = !flat_.empty();
   if (cull) findFlatRegions(exec);
   bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
@@ -142,6 +184,7 @@ void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
   out.array(skinHi_);
   out.vector(pairs_);
   out.vector(push_);
+  out.value(gatheredCentroid_);
 }
 
 template <class S>
@@ -173,12 +216,16 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
             std::to_string(model_->particleCount()) + " particles in this simulation");
   if (!std::all_of(push_.begin(), push_.end(), [](double p) { return std::isfinite(p); }))
     in.fail("the self-collision pushes are not finite");
+  in.field(gatheredCentroid_, "the self-collision centroid");
+  if (!std::all_of(gatheredCentroid_.begin(), gatheredCentroid_.end(), [](double c) { return std::isfinite(c); }))
+    in.fail("the self-collision centroid is not finite");
   useCandidates();
   for (Index k = 0; k < blocksUsed_; ++k) expandBlock(k);
   candidatesValid_ = valid;
 }
 
 #define WEFT_INSTANTIATE_CANDIDATES(S)                                                                       \
+  template std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>&, const Executor&);         \
   template bool SelfCollider<S>::candidatesCover(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&); \
   template void SelfCollider<S>::gatherCandidates(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&, \
                                                   SelfCollisionStats&);                                      \

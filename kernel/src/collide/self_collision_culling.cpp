@@ -119,45 +119,41 @@ void SelfCollider<S>::findConnectedNodes() {
 
 template <class S>
 void SelfCollider<S>::findFlatRegions(const Executor& exec) {
-  const Index triangles = bvh_.triangleCount();
   const Triangles& tr = model_->triangles();
   // Leaf cones: the normal at the boxes' centres, widened by the most the corners can turn
   // it anywhere in their boxes (|n' - n| <= |d1| |e2| + |e1| |d2| + |d1| |d2|).
-  exec.parallelFor(triangles, kVertexGrain, [&](Index begin, Index end) {
-    for (Index s = begin; s < end; ++s) {
-      const Index t = bvh_.slotTriangle(s);
-      const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
-      V centre[3];
-      double radius[3];
-      for (int k = 0; k < 3; ++k) {
-        double r2 = 0;
-        const Aabb<S>& box = skinBox_[static_cast<size_t>(c[k])];
-        for (int a = 0; a < 3; ++a) {
-          const double lo = static_cast<double>(box.lo[a]), hi = static_cast<double>(box.hi[a]);
-          centre[k][a] = 0.5 * (lo + hi);
-          r2 += 0.25 * (hi - lo) * (hi - lo);
-        }
-        radius[k] = std::sqrt(r2);
+  const auto leafCone = [&](Index s) {
+    const Index t = bvh_.slotTriangle(s);
+    const Index c[3] = {tr.a[t], tr.b[t], tr.c[t]};
+    V centre[3];
+    double radius[3];
+    for (int k = 0; k < 3; ++k) {
+      const Aabb<S>& box = skinBox_[static_cast<size_t>(c[k])];
+      double r2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double lo = static_cast<double>(box.lo[a]), hi = static_cast<double>(box.hi[a]);
+        centre[k][a] = 0.5 * (lo + hi);
+        r2 += 0.25 * (hi - lo) * (hi - lo);
       }
-      const V e1 = centre[1] - centre[0], e2 = centre[2] - centre[0];
-      const V n = e1.cross(e2);
-      const double length = n.norm(), d1 = radius[0] + radius[1], d2 = radius[0] + radius[2];
-      const double turn = d1 * e2.norm() + e1.norm() * d2 + d1 * d2;
-      Cone& cone = leafCones_[static_cast<size_t>(s)];
-      if (!(turn < length)) {  // (NaN too)
-        cone = {{0, 0, 1}, -1, 0};
-        continue;
-      }
-      const double sine = turn / length;
-      cone = {{n[0] / length, n[1] / length, n[2] / length}, std::sqrt(1 - sine * sine), sine};
+      radius[k] = std::sqrt(r2);
     }
-  });
+    const V e1 = centre[1] - centre[0], e2 = centre[2] - centre[0];
+    const V n = e1.cross(e2);
+    const double length = n.norm(), d1 = radius[0] + radius[1], d2 = radius[0] + radius[2];
+    const double turn = d1 * e2.norm() + e1.norm() * d2 + d1 * d2;
+    Cone& cone = leafCones_[static_cast<size_t>(s)];
+    if (!(turn < length)) {  // (NaN too)
+      cone = {{0, 0, 1}, -1, 0};
+      return;
+    }
+    const double sine = turn / length;
+    cone = {{n[0] / length, n[1] / length, n[2] / length}, std::sqrt(1 - sine * sine), sine};
+  };
   // Node cones, children before parents: the axis bisects the children's, and the
   // half-angle covers each child's cone about it. A node is flat when its cone is narrower
   // than a half space and its triangles are connected.
   const std::vector<BvhNode<S>>& nodes = bvh_.nodes();
-  const Index nodeCount = static_cast<Index>(nodes.size());
-  for (Index q = nodeCount - 1; q >= 0; --q) {
+  const auto nodeCone = [&](Index q) {
     const BvhNode<S>& node = nodes[static_cast<size_t>(q)];
     const Cone* child[2];
     for (int k = 0; k < 2; ++k)
@@ -166,7 +162,8 @@ void SelfCollider<S>::findFlatRegions(const Executor& exec) {
     Cone& cone = cones_[static_cast<size_t>(q)];
     cone = mergedCone(*child[0], *child[1]);
     flat_[static_cast<size_t>(q)] = connected_[static_cast<size_t>(q)] != 0 && cone.cos > 0;
-  }
+  };
+  bvh_.bottomUp(exec, leafCone, nodeCone);
 }
 
 template void SelfCollider<float>::findConnectedNodes();
