@@ -133,7 +133,17 @@ class SelfCollider {
   std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
   std::vector<double> displacement_;       // (n) m, moved by the current response pass
   std::vector<double> push_;               // (3n, vertex-major) m, the last chunk's response moved x1 by this
-  Vec3Array<S> unpushed_;                  // (n x 3) x1 before this chunk's response
+  Vec3Array<S> unpushed_;                  // (n x 3) a touched vertex's x1 before this chunk's response
+  std::vector<std::uint8_t> touchedFlag_;  // (n) moved by this chunk's response or failsafe
+  std::vector<Index> touched_;             // those vertices, in the order first moved
+  std::vector<Index> lastTouched_;         // the last chunk's: their push_ is not zero
+  /// Records j's x1 before this chunk first moves it.
+  void touch(Index j, const Vec3Array<S>& x1) {
+    if (touchedFlag_[static_cast<size_t>(j)]) return;
+    touchedFlag_[static_cast<size_t>(j)] = 1;
+    touched_.push_back(j);
+    for (int a = 0; a < 3; ++a) unpushed_(j, a) = x1(j, a);
+  }
   std::vector<double> thickness_;          // (n) m, each particle's cloth's thickness
   std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
   double thinnest_ = 0;                    // m, the least thickness of a particle

@@ -381,6 +381,9 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
   displacement_.assign(static_cast<size_t>(model.particleCount()), 0.0);
   push_.assign(3 * static_cast<size_t>(model.particleCount()), 0.0);
   unpushed_.resize(model.particleCount(), 3);
+  touchedFlag_.assign(static_cast<size_t>(model.particleCount()), 0);
+  touched_.reserve(static_cast<size_t>(model.particleCount()));
+  lastTouched_.reserve(static_cast<size_t>(model.particleCount()));
   moved_.assign(static_cast<size_t>(model.particleCount()), 0);
   skinLo_.setZero(model.particleCount(), 3);  // (zero, not undefined: a checkpoint writes them)
   skinHi_.setZero(model.particleCount(), 3);
@@ -612,6 +615,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
           if (f == 0) continue;
           const Index j = c.vertex[i];
           moved_[static_cast<size_t>(j)] = 1;
+          touch(j, x1);
           double step2 = 0;
           for (int a = 0; a < 3; ++a) {
             const S before = x1(j, a);
@@ -645,19 +649,19 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
                                             const ScalarArray<S>& w, double h, const Executor& exec) {
   SelfCollisionStats stats;
   if (bvh_.triangleCount() < 2) return stats;
-  const Index n = model_->particleCount();
-  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
-    for (int a = 0; a < 3; ++a)
-      for (Index i = begin; i < end; ++i) unpushed_(i, a) = x1(i, a);
-  });
   resolvePasses(x0, x1, v1, w, h, exec, stats);
-  // What the response did to each vertex: the next gathering's skin covers as much again (kPush).
-  exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
-    for (Index i = begin; i < end; ++i)
-      for (int a = 0; a < 3; ++a)
-        push_[3 * static_cast<size_t>(i) + static_cast<size_t>(a)] =
-            static_cast<double>(x1(i, a)) - static_cast<double>(unpushed_(i, a));
-  });
+  // What the response and the failsafe did to each vertex they moved (touch): the next
+  // gathering's skin covers as much again (kPush). The others were not pushed.
+  for (const Index j : lastTouched_)
+    for (int a = 0; a < 3; ++a) push_[3 * static_cast<size_t>(j) + static_cast<size_t>(a)] = 0;
+  for (const Index j : touched_) {
+    for (int a = 0; a < 3; ++a)
+      push_[3 * static_cast<size_t>(j) + static_cast<size_t>(a)] =
+          static_cast<double>(x1(j, a)) - static_cast<double>(unpushed_(j, a));
+    touchedFlag_[static_cast<size_t>(j)] = 0;
+  }
+  lastTouched_.swap(touched_);
+  touched_.clear();
   return stats;
 }
 
@@ -706,6 +710,7 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
           if (w[j] == S(0) || frozen_[static_cast<size_t>(j)]) continue;
           frozen_[static_cast<size_t>(j)] = 1;
           moved_[static_cast<size_t>(j)] = 1;
+          touch(j, x1);
           for (int a = 0; a < 3; ++a) {
             x1(j, a) = x0(j, a);
             v1(j, a) = S(0);

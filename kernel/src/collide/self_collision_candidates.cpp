@@ -216,6 +216,11 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
             std::to_string(model_->particleCount()) + " particles in this simulation");
   if (!std::all_of(push_.begin(), push_.end(), [](double p) { return std::isfinite(p); }))
     in.fail("the self-collision pushes are not finite");
+  lastTouched_.clear();
+  for (Index j = 0; j < model_->particleCount(); ++j)
+    if (push_[3 * static_cast<size_t>(j)] != 0 || push_[3 * static_cast<size_t>(j) + 1] != 0 ||
+        push_[3 * static_cast<size_t>(j) + 2] != 0)
+      lastTouched_.push_back(j);
   in.field(gatheredCentroid_, "the self-collision centroid");
   if (!std::all_of(gatheredCentroid_.begin(), gatheredCentroid_.end(), [](double c) { return std::isfinite(c); }))
     in.fail("the self-collision centroid is not finite");
