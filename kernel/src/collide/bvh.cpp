@@ -274,7 +274,8 @@ void TriangleBvh<S>::refitWith(const LeafBox& leafBox, const Executor& exec) {
     node.box[1] = b1;
     boxes[q] = merged(b0, b1);
   };
-  bottomUp(exec, [&](Index s) { leaves[s] = leafBox(s); }, refitNode);
+  bottomUp(
+      exec, [&](Index s) { leaves[s] = leafBox(s); }, refitNode);
   rootBox_ = boxes[0];
 }
 

@@ -160,7 +160,7 @@ class SelfCollider {
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
   std::vector<std::uint8_t> blockFlags_;
-  std::vector<std::array<double, 3>> blockSums_;      // (vertex blocks) scratch of centroid
+  std::vector<std::array<double, 3>> blockSums_;     // (vertex blocks) scratch of centroid
   std::array<double, 3> gatheredCentroid_{0, 0, 0};  // m, x1's centroid at the last gathering
 };
 

@@ -666,9 +666,8 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
 }
 
 template <class S>
-void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
-                                    const ScalarArray<S>& w, double h, const Executor& exec,
-                                    SelfCollisionStats& stats) {
+void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
+                                    double h, const Executor& exec, SelfCollisionStats& stats) {
   for (int pass = 0;; ++pass) {
     const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;
@@ -682,7 +681,7 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
       guards = guards || block.guards > 0;
       margin = std::min(margin, block.margin);
     }
-    if (!any) return;  // no pair within the thickness / 2: nothing can intersect
+    if (!any) return;                            // no pair within the thickness / 2: nothing can intersect
     margin = std::min(margin, 0.5 * thinnest_);  // (the pairs not in contact: proven >= their thickness / 2)
     if (!last) {
       // Converged: no pair came within its failsafe threshold, so every pair stayed at

@@ -25,7 +25,8 @@ std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>& x, const Exe
     }
   });
   std::array<double, 3> c{0, 0, 0};
-  for (Index k = 0; k < Executor::blockCount(n, kVertexGrain); ++k)  // (in block order: the same bits on any thread count)
+  for (Index k = 0; k < Executor::blockCount(n, kVertexGrain);
+       ++k)  // (in block order: the same bits on any thread count)
     for (int a = 0; a < 3; ++a) c[static_cast<size_t>(a)] += blockSums_[static_cast<size_t>(k)][static_cast<size_t>(a)];
   for (double& v : c) v /= static_cast<double>(n);
   return c;
@@ -123,7 +124,7 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
   // than their thickness (then they cannot come that close while every vertex stays in its
   // skin box). The boxes' bounds are exact in S; the comparison is in double.
   const Aabb<S>* box = skinBox_.data();
-  const auto apart = [&](const Index (&v)[4], int split) {
+  const auto apart = [&](const Index(&v)[4], int split) {
     const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
     for (int a = 0; a < 3; ++a) {
       S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
@@ -230,7 +231,7 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
 }
 
 #define WEFT_INSTANTIATE_CANDIDATES(S)                                                                       \
-  template std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>&, const Executor&);         \
+  template std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>&, const Executor&);            \
   template bool SelfCollider<S>::candidatesCover(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&); \
   template void SelfCollider<S>::gatherCandidates(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&, \
                                                   SelfCollisionStats&);                                      \
