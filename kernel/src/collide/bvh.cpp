@@ -324,6 +324,27 @@ void TriangleBvh<S>::refitSwept(const Vec3Array<S>& x0, const Vec3Array<S>& x1, 
       exec);
 }
 
+template <class S>
+void TriangleBvh<S>::refitBoxes(const std::vector<Aabb<S>>& vertexBox, const Executor& exec) {
+  if (static_cast<Index>(vertexBox.size()) != vertexCount_)
+    throw std::invalid_argument("TriangleBvh::refitBoxes: " + std::to_string(vertexBox.size()) + " boxes for " +
+                                std::to_string(vertexCount_) + " vertices");
+  const Aabb<S>* v = vertexBox.data();
+  const S m = margin_;
+  const std::array<Index, 3>* corners = corners_.data();
+  refitWith(
+      [&](Index s) {
+        const std::array<Index, 3>& c = corners[s];
+        Aabb<S> box;
+        for (int k = 0; k < 3; ++k) {
+          box.lo[k] = std::min(std::min(v[c[0]].lo[k], v[c[1]].lo[k]), v[c[2]].lo[k]) - m;
+          box.hi[k] = std::max(std::max(v[c[0]].hi[k], v[c[1]].hi[k]), v[c[2]].hi[k]) + m;
+        }
+        return box;
+      },
+      exec);
+}
+
 template class TriangleBvh<float>;
 template class TriangleBvh<double>;
 

@@ -188,6 +188,8 @@ class TriangleBvh {
   void refit(const Vec3Array<S>& x, const Executor& exec);
   /// Boxes covering each triangle at x0 and at x1 (the start and end of a step), inflated by the margin.
   void refitSwept(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
+  /// Boxes covering each triangle's corners' boxes (one per vertex), inflated by the margin.
+  void refitBoxes(const std::vector<Aabb<S>>& vertexBox, const Executor& exec);
 
   Index triangleCount() const { return static_cast<Index>(slotTriangle_.size()); }
   Index vertexCount() const { return vertexCount_; }

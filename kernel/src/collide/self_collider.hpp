@@ -148,8 +148,7 @@ class SelfCollider {
   std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
   double thinnest_ = 0;                    // m, the least thickness of a particle
   double skin_ = 0;                        // m
-  Vec3Array<S> skinLo_, skinHi_;           // (n x 3) each vertex's skin box
-  std::vector<Aabb<S>> skinBox_;           // (n) the same, one box per vertex (read by index)
+  std::vector<Aabb<S>> skinBox_;           // (n) each vertex's skin box
   std::vector<Aabb<S>> triangleBox_;       // (triangles) each triangle's box over the chunk
   std::vector<std::uint8_t> connected_;    // (nodes) the node's triangles are edge-connected
   std::vector<std::uint8_t> flat_;         // (nodes) a flat region at the last gathering: not queried

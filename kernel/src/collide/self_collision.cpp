@@ -385,10 +385,8 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
   touched_.reserve(static_cast<size_t>(model.particleCount()));
   lastTouched_.reserve(static_cast<size_t>(model.particleCount()));
   moved_.assign(static_cast<size_t>(model.particleCount()), 0);
-  skinLo_.setZero(model.particleCount(), 3);  // (zero, not undefined: a checkpoint writes them)
-  skinHi_.setZero(model.particleCount(), 3);
   sweptBox_.resize(static_cast<size_t>(model.particleCount()));
-  skinBox_.assign(static_cast<size_t>(model.particleCount()), Aabb<S>{});
+  skinBox_.assign(static_cast<size_t>(model.particleCount()), Aabb<S>{});  // (zero: a checkpoint writes them)
   blockSums_.resize(static_cast<size_t>(Executor::blockCount(model.particleCount(), kVertexGrain)));
   blockFlags_.reserve(blockSums_.size());
   triangleBox_.resize(static_cast<size_t>(triangles));

@@ -41,11 +41,12 @@ bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>
     return std::all_of(blockFlags_.begin(), blockFlags_.end(), [](std::uint8_t f) { return f != 0; });
   };
   blockFlags_.assign(static_cast<size_t>(blocks), 1);
+  const Aabb<S>* box = skinBox_.data();
   exec.parallelForBlocks(n, kVertexGrain, [&](Index k, Index begin, Index end) {
     bool inside = true;
     for (int a = 0; a < 3; ++a)
       for (Index i = begin; i < end; ++i) {
-        const S lo = skinLo_(i, a), hi = skinHi_(i, a);
+        const S lo = box[i].lo[a], hi = box[i].hi[a];
         inside = inside && x0(i, a) >= lo && x0(i, a) <= hi && x1(i, a) >= lo && x1(i, a) <= hi;
       }
     blockFlags_[static_cast<size_t>(k)] = inside ? 1 : 0;
@@ -64,7 +65,7 @@ bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>
     bool inside = true;
     for (int a = 0; a < 3; ++a)
       for (Index i = begin; i < end; ++i) {
-        const double lo = static_cast<double>(skinLo_(i, a)), hi = static_cast<double>(skinHi_(i, a));
+        const double lo = static_cast<double>(box[i].lo[a]), hi = static_cast<double>(box[i].hi[a]);
         const double y0 = static_cast<double>(x0(i, a)) - o0[a], y1 = static_cast<double>(x1(i, a)) - o1[a];
         inside = inside && y0 >= lo && y0 <= hi && y1 >= lo && y1 <= hi;
       }
@@ -82,14 +83,13 @@ void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
       const double cap = thickness_[static_cast<size_t>(i)];
       for (int a = 0; a < 3; ++a) {
         const double push = kPush * push_[3 * static_cast<size_t>(i) + static_cast<size_t>(a)];
-        skinLo_(i, a) = std::min(x0(i, a), x1(i, a)) - static_cast<S>(skin_ + std::min(cap, std::max(0.0, -push)));
-        skinHi_(i, a) = std::max(x0(i, a), x1(i, a)) + static_cast<S>(skin_ + std::min(cap, std::max(0.0, push)));
-        skinBox_[static_cast<size_t>(i)].lo[a] = skinLo_(i, a);
-        skinBox_[static_cast<size_t>(i)].hi[a] = skinHi_(i, a);
+        Aabb<S>& box = skinBox_[static_cast<size_t>(i)];
+        box.lo[a] = std::min(x0(i, a), x1(i, a)) - static_cast<S>(skin_ + std::min(cap, std::max(0.0, -push)));
+        box.hi[a] = std::max(x0(i, a), x1(i, a)) + static_cast<S>(skin_ + std::min(cap, std::max(0.0, push)));
       }
     }
   });
-  bvh_.refitSwept(skinLo_, skinHi_, exec);  // margin: half the thickness
+  bvh_.refitBoxes(skinBox_, exec);  // margin: half the thickness
   gatheredCentroid_ = centroid(x1, exec);
   const bool cull = !flat_.empty();
   if (cull) findFlatRegions(exec);
@@ -181,8 +181,7 @@ template <class S>
 void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
   out.section("SELF");
   out.value(static_cast<std::uint8_t>(candidatesValid_ ? 1 : 0));
-  out.array(skinLo_);
-  out.array(skinHi_);
+  out.vector(skinBox_);
   out.vector(pairs_);
   out.vector(push_);
   out.value(gatheredCentroid_);
@@ -193,8 +192,10 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   in.section("SELF");
   bool valid = false;
   in.flag(valid, "the self-collision candidates' flag");
-  in.field(skinLo_, "the self-collision skin boxes (low)");
-  in.field(skinHi_, "the self-collision skin boxes (high)");
+  in.field(skinBox_, "the self-collision skin boxes");
+  if (skinBox_.size() != static_cast<size_t>(model_->particleCount()))
+    in.fail("the self-collision skin boxes: " + std::to_string(skinBox_.size()) + " in the file, " +
+            std::to_string(model_->particleCount()) + " particles in this simulation");
   in.field(pairs_, "the self-collision candidates");
   const Index triangles = model_->triangleCount();
   for (size_t k = 0; k < pairs_.size(); ++k) {
@@ -204,13 +205,10 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
               std::to_string(p.second) + ") is not a sorted pair of the model's " + std::to_string(triangles) +
               " triangles");
   }
-  if (!((skinLo_.array() <= skinHi_.array()).all() && skinLo_.allFinite() && skinHi_.allFinite()))
-    in.fail("the self-collision skin boxes are not finite boxes");
-  for (Index i = 0; i < model_->particleCount(); ++i)
-    for (int a = 0; a < 3; ++a) {
-      skinBox_[static_cast<size_t>(i)].lo[a] = skinLo_(i, a);
-      skinBox_[static_cast<size_t>(i)].hi[a] = skinHi_(i, a);
-    }
+  for (const Aabb<S>& box : skinBox_)
+    for (int a = 0; a < 3; ++a)
+      if (!(std::isfinite(box.lo[a]) && std::isfinite(box.hi[a]) && box.lo[a] <= box.hi[a]))
+        in.fail("the self-collision skin boxes are not finite boxes");
   in.field(push_, "the self-collision pushes");
   if (push_.size() != 3 * static_cast<size_t>(model_->particleCount()))
     in.fail("the self-collision pushes: " + std::to_string(push_.size()) + " entries in the file, 3 x " +
