@@ -640,10 +640,10 @@ ModelAndState<double> foldedInTwo(Index size, double r) {
 }
 
 TEST(SelfCollisionCulling, ACarriedClothKeepsItsCandidatesAndFindsWhatAFreshPassFinds) {
-  // Two layers 3 mm apart (the 4 mm thickness: in contact), carried 0.4 m in one chunk
-  // while sagging 0.1 mm: the list still covers the chunk (the centroid's motion is
-  // allowed for), and the pass finds the contacts, and moves the cloth to the bits, that a
-  // fresh pass without culling does.
+  // Two layers 3 mm apart (the 4 mm thickness: in contact), carried 0.4 m a chunk while
+  // sagging 0.1 mm: the list still covers the chunks (the centroid's motion is allowed
+  // for), and the pass finds the contacts, and moves the cloth to the bits, that a fresh
+  // pass without culling does.
   const ModelAndState<double> built = foldedInTwo(33, 0.0015);
   Executor exec(2);
   SelfCollisionOptions options;
@@ -655,22 +655,33 @@ TEST(SelfCollisionCulling, ACarriedClothKeepsItsCandidatesAndFindsWhatAFreshPass
   const SelfCollisionStats first = carried.resolve(x0, x1, v1, w, 1e-3, exec);
   EXPECT_GE(first.rebuilds, 1);
   EXPECT_GT(first.contacts, 0);
-  // The next chunk: from where the first ended, carried by (0.3, -0.2, 0.2) m.
-  x0 = x1;
-  x1.col(0).array() += 0.3;
-  x1.col(1).array() -= 0.2 + 1e-4;
-  x1.col(2).array() += 0.2;
-  Vec3Array<double> freshX1 = x1, freshV1 = v1;
-  const SelfCollisionStats second = carried.resolve(x0, x1, v1, w, 1e-3, exec);
-  EXPECT_EQ(second.rebuilds, 0) << "the carried cloth gathered its candidates again";
+  // Each next chunk starts where the last ended: carried by (0.3, -0.2, 0.2) m, carried as
+  // far again (x0 already far from where the list was gathered), then carried and sheared
+  // by 5 mm across the cloth (more than the skin: it must gather again). Each finds the
+  // contacts, and moves the cloth to the bits, of a fresh pass without culling.
   SelfCollisionOptions unculled = options;
   unculled.cullFlatRegions = false;
-  SelfCollider<double> fresh(built.model, unculled, x0, exec);
-  const SelfCollisionStats reference = fresh.resolve(x0, freshX1, freshV1, w, 1e-3, exec);
-  EXPECT_GT(reference.contacts, 0);
-  EXPECT_EQ(second.contacts, reference.contacts);
-  EXPECT_EQ(second.vertexTriangle, reference.vertexTriangle);
-  EXPECT_EQ(stateHash(State<double>{x1, v1, 0}), stateHash(State<double>{freshX1, freshV1, 0}));
+  for (int chunk = 0; chunk < 3; ++chunk) {
+    x0 = x1;
+    x1.col(0).array() += 0.3;
+    x1.col(1).array() -= 0.2 + 1e-4;
+    x1.col(2).array() += 0.2;
+    if (chunk == 2)
+      for (Index i = 0; i < built.model.particleCount(); ++i) x1(i, 0) += 0.005 * static_cast<double>(i / 33) / 32;
+    Vec3Array<double> freshX1 = x1, freshV1 = v1;
+    const SelfCollisionStats stats = carried.resolve(x0, x1, v1, w, 1e-3, exec);
+    if (chunk < 2) {
+      EXPECT_EQ(stats.rebuilds, 0) << "chunk " << chunk << ": the carried cloth gathered its candidates again";
+    } else {
+      EXPECT_GE(stats.rebuilds, 1) << "the sheared cloth kept its candidates";
+    }
+    SelfCollider<double> fresh(built.model, unculled, x0, exec);
+    const SelfCollisionStats reference = fresh.resolve(x0, freshX1, freshV1, w, 1e-3, exec);
+    EXPECT_GT(reference.contacts, 0) << "chunk " << chunk;
+    EXPECT_EQ(stats.contacts, reference.contacts) << "chunk " << chunk;
+    EXPECT_EQ(stats.vertexTriangle, reference.vertexTriangle) << "chunk " << chunk;
+    EXPECT_EQ(stateHash(State<double>{x1, v1, 0}), stateHash(State<double>{freshX1, freshV1, 0})) << "chunk " << chunk;
+  }
 }
 
 TEST(SelfCollisionCulling, LayersTheResponsePushesGatherOncePerChunk) {

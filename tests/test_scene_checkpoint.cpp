@@ -209,4 +209,30 @@ TEST(Resume, ForeignOrDamagedCheckpointsAreRefusedAndChangeNothing) {
   EXPECT_EQ(target.stepCount(), 3);
 }
 
+TEST(Resume, ACheckpointOfOtherSelfCollisionSettingsIsRefused) {
+  // The self-collision candidates a checkpoint carries hold for the thickness, the skin and
+  // the culling they were gathered with: a Simulation with other settings refuses them.
+  const SceneSpec spec = builtinSceneSpec("fold", 16);
+  ASSERT_TRUE(spec.simulation.selfCollision.enabled);
+  Simulation<double> saved = build<double>(spec, 1);
+  ASSERT_TRUE(saved.run(5).ok());
+  const std::string bytes = saved.checkpoint();
+  for (const bool thicker : {true, false}) {
+    SceneSpec other = spec;
+    if (thicker)
+      other.simulation.selfCollision.thickness *= 1.5;
+    else
+      other.simulation.selfCollision.cullFlatRegions = !other.simulation.selfCollision.cullFlatRegions;
+    Simulation<double> target = build<double>(other, 1);
+    const std::uint64_t before = stateHash(target.state());
+    const std::string m = refusal([&] { target.restore(bytes, "c.wckpt"); });
+    EXPECT_NE(m.find("written with other self-collision settings"), std::string::npos) << m;
+    EXPECT_EQ(stateHash(target.state()), before) << m;
+    EXPECT_EQ(target.stepCount(), 0);
+  }
+  Simulation<double> same = build<double>(spec, 1);
+  same.restore(bytes, "c.wckpt");
+  EXPECT_EQ(stateHash(same.state()), stateHash(saved.state()));
+}
+
 }  // namespace

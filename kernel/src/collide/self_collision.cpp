@@ -647,6 +647,8 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
                                             const ScalarArray<S>& w, double h, const Executor& exec) {
   SelfCollisionStats stats;
   if (bvh_.triangleCount() < 2) return stats;
+  for (const Index j : touched_) touchedFlag_[static_cast<size_t>(j)] = 0;  // (left by a chunk that threw)
+  touched_.clear();
   resolvePasses(x0, x1, v1, w, h, exec, stats);
   // What the response and the failsafe did to each vertex they moved (touch): the next
   // gathering's skin covers as much again (kPush). The others were not pushed.

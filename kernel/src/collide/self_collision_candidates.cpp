@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <initializer_list>
 #include <limits>
 #include <span>
 #include <string>
@@ -180,6 +179,11 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
 template <class S>
 void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
   out.section("SELF");
+  // What the list was gathered for: a list is only valid for the skin, the thicknesses and
+  // the culling it was gathered with.
+  out.value(skin_);
+  out.value(fnv1a64(thickness_.data(), thickness_.size() * sizeof(double)));
+  out.value(static_cast<std::uint8_t>(options_.cullFlatRegions ? 1 : 0));
   out.value(static_cast<std::uint8_t>(candidatesValid_ ? 1 : 0));
   out.vector(skinBox_);
   out.vector(pairs_);
@@ -190,6 +194,15 @@ void SelfCollider<S>::saveCarry(ArchiveWriter& out) const {
 template <class S>
 void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   in.section("SELF");
+  const auto skin = in.value<double>();
+  const auto thicknesses = in.value<std::uint64_t>();
+  const auto cull = in.value<std::uint8_t>();
+  if (skin != skin_ || thicknesses != fnv1a64(thickness_.data(), thickness_.size() * sizeof(double)) ||
+      cull != (options_.cullFlatRegions ? 1 : 0))
+    in.fail("written with other self-collision settings (skin " + std::to_string(skin) + " m, flat regions " +
+            (cull ? "culled" : "not culled") + "; this simulation: skin " + std::to_string(skin_) +
+            " m, flat regions " + (options_.cullFlatRegions ? "culled" : "not culled") +
+            ", or other thicknesses): a checkpoint resumes the simulation that wrote it");
   bool valid = false;
   in.flag(valid, "the self-collision candidates' flag");
   in.field(skinBox_, "the self-collision skin boxes");
