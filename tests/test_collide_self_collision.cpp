@@ -639,27 +639,39 @@ ModelAndState<double> foldedInTwo(Index size, double r) {
   return built;
 }
 
+/// A self-collision pass with the default options (flat regions culled) on `built`, on 2
+/// threads, every particle free.
+struct CulledPass {
+  static SelfCollisionOptions enabled() {
+    SelfCollisionOptions o;
+    o.enabled = true;
+    return o;
+  }
+  explicit CulledPass(const ModelAndState<double>& built)
+      : collider(built.model, enabled(), built.state.x, exec),
+        w(ScalarArray<double>::Ones(built.model.particleCount())) {}
+  Executor exec{2};
+  SelfCollider<double> collider;
+  ScalarArray<double> w;
+};
+
 TEST(SelfCollisionCulling, ACarriedClothKeepsItsCandidatesAndFindsWhatAFreshPassFinds) {
   // Two layers 3 mm apart (the 4 mm thickness: in contact), carried 0.4 m a chunk while
   // sagging 0.1 mm: the list still covers the chunks (the centroid's motion is allowed
   // for), and the pass finds the contacts, and moves the cloth to the bits, that a fresh
   // pass without culling does.
   const ModelAndState<double> built = foldedInTwo(33, 0.0015);
-  Executor exec(2);
-  SelfCollisionOptions options;
-  options.enabled = true;
-  SelfCollider<double> carried(built.model, options, built.state.x, exec);
-  const ScalarArray<double> w = ScalarArray<double>::Ones(built.model.particleCount());
+  CulledPass pass(built);
   Vec3Array<double> x0 = built.state.x, x1 = x0, v1 = built.state.v;
   x1.col(1).array() -= 1e-4;
-  const SelfCollisionStats first = carried.resolve(x0, x1, v1, w, 1e-3, exec);
+  const SelfCollisionStats first = pass.collider.resolve(x0, x1, v1, pass.w, 1e-3, pass.exec);
   EXPECT_GE(first.rebuilds, 1);
   EXPECT_GT(first.contacts, 0);
   // Each next chunk starts where the last ended: carried by (0.3, -0.2, 0.2) m, carried as
   // far again (x0 already far from where the list was gathered), then carried and sheared
   // by 5 mm across the cloth (more than the skin: it must gather again). Each finds the
   // contacts, and moves the cloth to the bits, of a fresh pass without culling.
-  SelfCollisionOptions unculled = options;
+  SelfCollisionOptions unculled = pass.collider.options();
   unculled.cullFlatRegions = false;
   for (int chunk = 0; chunk < 3; ++chunk) {
     x0 = x1;
@@ -669,14 +681,14 @@ TEST(SelfCollisionCulling, ACarriedClothKeepsItsCandidatesAndFindsWhatAFreshPass
     if (chunk == 2)
       for (Index i = 0; i < built.model.particleCount(); ++i) x1(i, 0) += 0.005 * static_cast<double>(i / 33) / 32;
     Vec3Array<double> freshX1 = x1, freshV1 = v1;
-    const SelfCollisionStats stats = carried.resolve(x0, x1, v1, w, 1e-3, exec);
+    const SelfCollisionStats stats = pass.collider.resolve(x0, x1, v1, pass.w, 1e-3, pass.exec);
     if (chunk < 2) {
       EXPECT_EQ(stats.rebuilds, 0) << "chunk " << chunk << ": the carried cloth gathered its candidates again";
     } else {
       EXPECT_GE(stats.rebuilds, 1) << "the sheared cloth kept its candidates";
     }
-    SelfCollider<double> fresh(built.model, unculled, x0, exec);
-    const SelfCollisionStats reference = fresh.resolve(x0, freshX1, freshV1, w, 1e-3, exec);
+    SelfCollider<double> fresh(built.model, unculled, x0, pass.exec);
+    const SelfCollisionStats reference = fresh.resolve(x0, freshX1, freshV1, pass.w, 1e-3, pass.exec);
     EXPECT_GT(reference.contacts, 0) << "chunk " << chunk;
     EXPECT_EQ(stats.contacts, reference.contacts) << "chunk " << chunk;
     EXPECT_EQ(stats.vertexTriangle, reference.vertexTriangle) << "chunk " << chunk;
@@ -692,23 +704,19 @@ TEST(SelfCollisionCulling, LayersTheResponsePushesGatherOncePerChunk) {
   // cover them; without that, each response pass moved them out of their boxes and the
   // next gathered again.
   const ModelAndState<double> built = foldedInTwo(65, 0.001);
-  Executor exec(2);
-  SelfCollisionOptions options;
-  options.enabled = true;
-  SelfCollider<double> collider(built.model, options, built.state.x, exec);
-  const ScalarArray<double> w = ScalarArray<double>::Ones(built.model.particleCount());
+  CulledPass pass(built);
   for (int chunk = 0; chunk < 4; ++chunk) {
     Vec3Array<double> x0 = built.state.x, v1 = built.state.v;
     for (Index i = 0; i < built.model.particleCount(); ++i)
       x0(i, 0) += 0.005 * chunk * static_cast<double>(i / 65) / 64;
     Vec3Array<double> x1 = x0;
     x1.col(1).array() -= 1e-4;
-    const SelfCollisionStats stats = collider.resolve(x0, x1, v1, w, 1e-3, exec);
+    const SelfCollisionStats stats = pass.collider.resolve(x0, x1, v1, pass.w, 1e-3, pass.exec);
     EXPECT_GT(stats.contacts, 0) << "chunk " << chunk;
     if (chunk > 0) {
       EXPECT_EQ(stats.rebuilds, 1) << "chunk " << chunk;
     }
-    EXPECT_EQ(countSelfIntersections(built.model, x1, exec), 0) << "chunk " << chunk;
+    EXPECT_EQ(countSelfIntersections(built.model, x1, pass.exec), 0) << "chunk " << chunk;
   }
 }
 

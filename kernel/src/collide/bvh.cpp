@@ -280,10 +280,8 @@ void TriangleBvh<S>::refitWith(const LeafBox& leafBox, const Executor& exec) {
 }
 
 template <class S>
-void TriangleBvh<S>::refit(const Vec3Array<S>& x, const Executor& exec) {
-  checkPositions("refit", x);
-  const Index nv = vertexCount_;
-  const S* col[3] = {x.data(), x.data() + nv, x.data() + 2 * nv};
+template <class Lo, class Hi>
+void TriangleBvh<S>::refitCorners(const Lo& lo, const Hi& hi, const Executor& exec) {
   const S m = margin_;
   const std::array<Index, 3>* corners = corners_.data();
   refitWith(
@@ -291,13 +289,21 @@ void TriangleBvh<S>::refit(const Vec3Array<S>& x, const Executor& exec) {
         const std::array<Index, 3>& c = corners[s];
         Aabb<S> box;
         for (int k = 0; k < 3; ++k) {
-          const S v0 = col[k][c[0]], v1 = col[k][c[1]], v2 = col[k][c[2]];
-          box.lo[k] = std::min(std::min(v0, v1), v2) - m;
-          box.hi[k] = std::max(std::max(v0, v1), v2) + m;
+          box.lo[k] = std::min(std::min(lo(c[0], k), lo(c[1], k)), lo(c[2], k)) - m;
+          box.hi[k] = std::max(std::max(hi(c[0], k), hi(c[1], k)), hi(c[2], k)) + m;
         }
         return box;
       },
       exec);
+}
+
+template <class S>
+void TriangleBvh<S>::refit(const Vec3Array<S>& x, const Executor& exec) {
+  checkPositions("refit", x);
+  const Index nv = vertexCount_;
+  const S* col[3] = {x.data(), x.data() + nv, x.data() + 2 * nv};
+  const auto at = [&](Index i, int k) { return col[k][i]; };
+  refitCorners(at, at, exec);
 }
 
 template <class S>
@@ -307,21 +313,8 @@ void TriangleBvh<S>::refitSwept(const Vec3Array<S>& x0, const Vec3Array<S>& x1, 
   const Index nv = vertexCount_;
   const S* col0[3] = {x0.data(), x0.data() + nv, x0.data() + 2 * nv};
   const S* col1[3] = {x1.data(), x1.data() + nv, x1.data() + 2 * nv};
-  const S m = margin_;
-  const std::array<Index, 3>* corners = corners_.data();
-  refitWith(
-      [&](Index s) {
-        const std::array<Index, 3>& c = corners[s];
-        Aabb<S> box;
-        for (int k = 0; k < 3; ++k) {
-          const S u0 = col0[k][c[0]], u1 = col0[k][c[1]], u2 = col0[k][c[2]];
-          const S v0 = col1[k][c[0]], v1 = col1[k][c[1]], v2 = col1[k][c[2]];
-          box.lo[k] = std::min(std::min(std::min(u0, u1), std::min(u2, v0)), std::min(v1, v2)) - m;
-          box.hi[k] = std::max(std::max(std::max(u0, u1), std::max(u2, v0)), std::max(v1, v2)) + m;
-        }
-        return box;
-      },
-      exec);
+  refitCorners([&](Index i, int k) { return std::min(col0[k][i], col1[k][i]); },
+               [&](Index i, int k) { return std::max(col0[k][i], col1[k][i]); }, exec);
 }
 
 template <class S>
@@ -330,19 +323,7 @@ void TriangleBvh<S>::refitBoxes(const std::vector<Aabb<S>>& vertexBox, const Exe
     throw std::invalid_argument("TriangleBvh::refitBoxes: " + std::to_string(vertexBox.size()) + " boxes for " +
                                 std::to_string(vertexCount_) + " vertices");
   const Aabb<S>* v = vertexBox.data();
-  const S m = margin_;
-  const std::array<Index, 3>* corners = corners_.data();
-  refitWith(
-      [&](Index s) {
-        const std::array<Index, 3>& c = corners[s];
-        Aabb<S> box;
-        for (int k = 0; k < 3; ++k) {
-          box.lo[k] = std::min(std::min(v[c[0]].lo[k], v[c[1]].lo[k]), v[c[2]].lo[k]) - m;
-          box.hi[k] = std::max(std::max(v[c[0]].hi[k], v[c[1]].hi[k]), v[c[2]].hi[k]) + m;
-        }
-        return box;
-      },
-      exec);
+  refitCorners([&](Index i, int k) { return v[i].lo[k]; }, [&](Index i, int k) { return v[i].hi[k]; }, exec);
 }
 
 template class TriangleBvh<float>;

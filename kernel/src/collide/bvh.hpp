@@ -254,6 +254,10 @@ class TriangleBvh {
   void checkPositions(const char* what, const Vec3Array<S>& x) const;
   template <class LeafBox>
   void refitWith(const LeafBox& leafBox, const Executor& exec);
+  /// refitWith a leaf box over its three corners: lo(vertex, axis) and hi(vertex, axis)
+  /// bound each corner, and the margin is added.
+  template <class Lo, class Hi>
+  void refitCorners(const Lo& lo, const Hi& hi, const Executor& exec);
   void sortKeys(const Executor& exec);
   void buildHierarchy(const Executor& exec);
   template <bool kSelf, bool kExact, bool kSkipShared = kSelf>
