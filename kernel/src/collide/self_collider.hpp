@@ -116,7 +116,7 @@ class SelfCollider {
   /// With flat regions culled, the skin is at most this share of the shortest triangle edge
   /// (a corner moving 5 % of an edge turns a triangle's normal by at most ~25 degrees).
   static constexpr double kConeSkin = 0.05;
-  /// A vertex the response moved by p (per axis, signed) in the last chunk gets a skin box
+  /// A vertex the response (or the failsafe) moved by p (per axis, signed) in the last chunk gets a skin box
   /// kPush |p| longer on that side of that axis, at most its thickness longer: a resting
   /// fold's vertices are pushed about as far every chunk, and a box that covers the push
   /// keeps the candidates gathered at the chunk's start valid for its later passes.
