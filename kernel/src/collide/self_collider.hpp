@@ -3,6 +3,7 @@
 // weft/collide/self_collision.hpp. Not installed: a Simulation owns its SelfCollider.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -162,6 +163,35 @@ class SelfCollider {
   std::vector<std::array<double, 3>> blockSums_;     // (vertex blocks) scratch of centroid
   std::array<double, 3> gatheredCentroid_{0, 0, 0};  // m, x1's centroid at the last gathering
 };
+
+/// Whether the boxes of a primitive pair's two sides are farther apart than `beyond` (m) on
+/// some axis: v holds its four vertices (VT: the vertex, then the triangle's corners, split
+/// 1; EE: one edge, then the other, split 2) and box[i] is vertex i's box. The bounds are
+/// exact in S, the gap is taken in double. Expansion asks it of the skin boxes, each pass of
+/// the chunk's boxes.
+template <class S>
+bool primitiveBoxesApart(const Aabb<S>* box, const Index* v, int split, double beyond) {
+  for (int a = 0; a < 3; ++a) {
+    S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
+    for (int i = 1; i < 3; ++i) {
+      if (i < split) {
+        lo1 = std::min(lo1, box[v[i]].lo[a]);
+        hi1 = std::max(hi1, box[v[i]].hi[a]);
+      } else {
+        lo2 = std::min(lo2, box[v[i]].lo[a]);
+        hi2 = std::max(hi2, box[v[i]].hi[a]);
+      }
+    }
+    if (static_cast<double>(lo1) - static_cast<double>(hi2) > beyond ||
+        static_cast<double>(lo2) - static_cast<double>(hi1) > beyond)
+      return true;
+  }
+  return false;
+}
+
+/// The factor on a thickness by which boxes must be apart to count as apart: (lo - hi) in S
+/// may round, so a relative 1e-6 is kept in hand.
+inline constexpr double kBoxesApart = 1 + 1e-6;
 
 extern template class SelfCollider<float>;
 extern template class SelfCollider<double>;

@@ -403,33 +403,13 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   const Index n = model_->particleCount();
   // A pair keeps the mean of its two cloths' thicknesses (the thickness when there is one).
   const double* th = thickness_.data();
-  // (lo - hi) - thickness in S may round: boxes count as apart with a margin of a relative 1e-6.
-  constexpr double kApart = 1 + 1e-6;
   const Triangles& tr = model_->triangles();
   const S* c0[3] = {x0.data(), x0.data() + n, x0.data() + 2 * n};
   const S* c1[3] = {x1.data(), x1.data() + n, x1.data() + 2 * n};
   const std::uint8_t* moved = moved_.data();
-  // A primitive pair (VT: split 1; EE: split 2) whose boxes over this chunk are farther
-  // apart than the thickness is not advanced.
+  // A primitive pair whose boxes over this chunk are farther apart than the thickness is
+  // not advanced.
   const Aabb<S>* box = sweptBox_.data();
-  const auto apartNow = [&](const Index* v, int split, double apartBeyond) {
-    for (int a = 0; a < 3; ++a) {
-      S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
-      for (int i = 1; i < 3; ++i) {
-        if (i < split) {
-          lo1 = std::min(lo1, box[v[i]].lo[a]);
-          hi1 = std::max(hi1, box[v[i]].hi[a]);
-        } else {
-          lo2 = std::min(lo2, box[v[i]].lo[a]);
-          hi2 = std::max(hi2, box[v[i]].hi[a]);
-        }
-      }
-      if (static_cast<double>(lo1) - static_cast<double>(hi2) > apartBeyond ||
-          static_cast<double>(lo2) - static_cast<double>(hi1) > apartBeyond)
-        return true;
-    }
-    return false;
-  };
   // A primitive pair to test: its vertices, their positions at the chunk's ends, and the
   // first look of its query (primitive_contact.hpp).
   struct Pending {
@@ -516,7 +496,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     const double apartBeyond =
         0.5 *
         (triangleThickness_[static_cast<size_t>(pair.first)] + triangleThickness_[static_cast<size_t>(pair.second)]) *
-        kApart;
+        kBoxesApart;
     bool apart = false;
     for (int a = 0; a < 3 && !apart; ++a)
       apart = static_cast<double>(first.lo[a]) - static_cast<double>(second.hi[a]) > apartBeyond ||
@@ -528,7 +508,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
       const Index* v = q.vertex;
       if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) continue;
       const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
-      if (apartNow(v, q.vertexTriangle ? 1 : 2, thickness * kApart)) continue;
+      if (primitiveBoxesApart(box, v, q.vertexTriangle ? 1 : 2, thickness * kBoxesApart)) continue;
       ++block.tests;
       if (m == kFirstLookBatch) flush();
       Pending& pending = batch[static_cast<size_t>(m++)];

@@ -119,29 +119,11 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
   const Triangles& tr = model_->triangles();
   const SurfaceTopology& topo = model_->surfaceTopology();
   const double* th = thickness_.data();
-  // Whether the skin boxes of two primitives (VT: split 1; EE: split 2) are farther apart
-  // than their thickness (then they cannot come that close while every vertex stays in its
-  // skin box). The boxes' bounds are exact in S; the comparison is in double.
+  // A primitive pair whose skin boxes are farther apart than its thickness cannot come
+  // that close while every vertex stays in its skin box.
   const Aabb<S>* box = skinBox_.data();
   const auto apart = [&](const Index(&v)[4], int split) {
-    const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
-    for (int a = 0; a < 3; ++a) {
-      S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
-      for (int i = 1; i < 3; ++i) {
-        const Aabb<S>& b = box[v[i]];
-        if (i < split) {
-          lo1 = std::min(lo1, b.lo[a]);
-          hi1 = std::max(hi1, b.hi[a]);
-        } else {
-          lo2 = std::min(lo2, b.lo[a]);
-          hi2 = std::max(hi2, b.hi[a]);
-        }
-      }
-      if (static_cast<double>(lo1) > static_cast<double>(hi2) + thickness ||
-          static_cast<double>(lo2) > static_cast<double>(hi1) + thickness)
-        return true;
-    }
-    return false;
+    return primitiveBoxesApart(box, v, split, 0.5 * (th[v[0]] + th[v[3]]) * kBoxesApart);
   };
   const Index count = static_cast<Index>(pairs_.size());
   const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
