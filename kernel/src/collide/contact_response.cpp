@@ -84,7 +84,7 @@ double respondVelocity(const Surface& o, double restingSpeed, V n, V& vel) {
 
 // Response to an analytic obstacle's contact c of the chunk p0 -> p1: returns the new
 // position, updates vel.
-V respondAnalytic(const CollisionOptions& opt, const Contact& c, V p0, V p1, V& vel) {
+V respondAnalytic(const CollisionOptions& opt, const Contact& c, V p0, V p1, V& vel, V& normal) {
   const double h = opt.thickness;
   const Obstacle& o = *c.obstacle;
   V p = p1, nrm;
@@ -109,13 +109,14 @@ V respondAnalytic(const CollisionOptions& opt, const Contact& c, V p0, V p1, V& 
     phi = distance(o, p, nrm);
     if (phi < h) p = p + (h - phi) * nrm;
   }
+  normal = nrm;
   return p;
 }
 
 // Response to mesh m hit at s along p0 -> p1 (world, chunk t0 -> t1): the same steps as
 // respondAnalytic in the mesh's frame, with the velocity taken relative to the surface.
 V respondMesh(const CollisionOptions& opt, const MeshObstacle& m, const MeshCollider& c, double s, V p0, V p1,
-              double t0, double t1, V& vel) {
+              double t0, double t1, V& vel, V& normal) {
   const double h = opt.thickness;
   const V b0 = toBody(m, p0, t0), b1 = toBody(m, p1, t1), d = b1 - b0;
   const V hit = b0 + s * d;
@@ -152,6 +153,7 @@ V respondMesh(const CollisionOptions& opt, const MeshObstacle& m, const MeshColl
     const V tangential = moved - dot(moved, n) * n;
     pb = pushOutOfMesh(c, pb - (1 - factor) * tangential, n, h);
   }
+  normal = nw;
   return toWorld(m, pb, t1);
 }
 

@@ -28,11 +28,12 @@ Contact detect(const CollisionOptions& opt, V p0, V p1);
 double respondVelocity(const Surface& o, double restingSpeed, V n, V& vel);
 
 /// Response to an analytic obstacle's contact c of the chunk p0 -> p1: the new position;
-/// updates vel.
-V respondAnalytic(const CollisionOptions& opt, const Contact& c, V p0, V p1, V& vel);
+/// updates vel and sets `normal` to the obstacle's unit normal there (out of the obstacle).
+V respondAnalytic(const CollisionOptions& opt, const Contact& c, V p0, V p1, V& vel, V& normal);
 
-/// Response to mesh m hit at s along p0 -> p1 (world, chunk t0 -> t1).
+/// Response to mesh m hit at s along p0 -> p1 (world, chunk t0 -> t1); `normal` as for
+/// respondAnalytic, in the world frame at t1.
 V respondMesh(const CollisionOptions& opt, const MeshObstacle& m, const MeshCollider& c, double s, V p0, V p1,
-              double t0, double t1, V& vel);
+              double t0, double t1, V& vel, V& normal);
 
 }  // namespace weft::detail

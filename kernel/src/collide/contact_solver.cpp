@@ -24,7 +24,7 @@ using namespace detail;
 template <class S>
 ContactSolver<S>::ContactSolver(const CollisionOptions& options, Index particleCount, std::vector<Edge> edges,
                                 std::shared_ptr<const CollisionModel> model, Triangles triangles)
-    : options_(options) {
+    : options_(options), particleCount_(particleCount) {
   validateCollision(options_);
   for (size_t k = 0; k < edges.size(); ++k)
     for (const Index i : edges[k])
@@ -206,6 +206,11 @@ double ContactSolver<S>::deepestPenetration(const Vec3Array<S>& x1, const Scalar
 }
 
 template <class S>
+void ContactSolver<S>::recordSupports() {
+  support_.assign(3 * static_cast<size_t>(particleCount_), 0.0);
+}
+
+template <class S>
 CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
                                          const ScalarArray<S>& w, double t0, double t1, const Executor& exec) {
   const Index n = static_cast<Index>(x1.rows());
@@ -213,7 +218,11 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
   exec.parallelForBlocks(n, kGrain, [&](Index block, Index b, Index e) {
     std::int64_t hits = 0, ccd = 0;
     double deepest = 0;
+    double* const support = support_.empty() ? nullptr : support_.data();
     for (Index i = b; i < e; ++i) {
+      if (support) {
+        for (int a = 0; a < 3; ++a) support[3 * i + a] = 0;
+      }
       if (w[i] == S(0)) continue;
       const V p0 = row(x0, i), p1 = row(x1, i);
       Contact c = detect(options_, p0, p1);
@@ -254,12 +263,18 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       ++hits;
       ccd += c.continuous ? 1 : 0;
       deepest = std::max(deepest, c.depth);
-      V vel = row(v1, i);
-      const V p = c.obstacle ? respondAnalytic(options_, c, p0, p1, vel)
+      V vel = row(v1, i), normal;
+      const V p = c.obstacle ? respondAnalytic(options_, c, p0, p1, vel, normal)
                              : respondMesh(options_, options_.meshes[static_cast<size_t>(c.mesh)],
-                                           model_->meshes()[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel);
+                                           model_->meshes()[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel,
+                                           normal);
       setRow(x1, i, p);
       setRow(v1, i, vel);
+      if (support) {
+        support[3 * i] = normal.x;
+        support[3 * i + 1] = normal.y;
+        support[3 * i + 2] = normal.z;
+      }
     }
     blockHits_[block] = hits;
     blockCcd_[block] = ccd;

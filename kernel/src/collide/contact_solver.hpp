@@ -63,6 +63,14 @@ class ContactSolver {
                          double t1, const Executor& exec);
 
   const CollisionOptions& options() const { return options_; }
+  /// From now on, resolve records each particle's support: the unit normal (out of the
+  /// obstacle) of the contact it resolved for that particle in its last call, or zero where
+  /// it resolved none. Self-collision reads it so that it does not push a particle resting
+  /// on an obstacle into that obstacle (SelfCollider::resolve). Off by default: a scene
+  /// without self-collision does not pay for it.
+  void recordSupports();
+  /// (particles x 3) the supports of the last resolve; null unless recordSupports was called.
+  const double* supports() const { return support_.empty() ? nullptr : support_.data(); }
   /// The prepared mesh obstacles this solver reads (shared when it was given one).
   const std::shared_ptr<const CollisionModel>& collisionModel() const { return model_; }
   /// Free particles in contact (distance < thickness + epsilon) in state x at time t (serial).
@@ -87,9 +95,11 @@ class ContactSolver {
                               double t0, double t1, const Executor& exec);
 
   CollisionOptions options_;
+  Index particleCount_ = 0;
   std::shared_ptr<const CollisionModel> model_;
   std::vector<double> blockDepth_;  // per block of kGrain particles
   std::vector<std::int64_t> blockHits_, blockCcd_;
+  std::vector<double> support_;  // (particles x 3) see supports(); empty: not recorded
   /// What the edge pass found for one edge, in the frame of mesh `mesh` (-1: nothing).
   struct EdgeHit {
     int mesh = -1;

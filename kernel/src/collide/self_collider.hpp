@@ -29,8 +29,12 @@ class SelfCollider {
   SelfCollider(const Model<S>& model, const SelfCollisionOptions& options, const Vec3Array<S>& x, const Executor& exec);
 
   /// Resolves the chunk x0 -> x1 (length h, s) in place: x1 and v1 change.
+  /// `supports` (particles x 3, ContactSolver::supports), when given: the unit normal of
+  /// the obstacle each particle rests on in this chunk, or zero. A contact's response does
+  /// not push such a particle into its obstacle; the other side of the contact takes that
+  /// share (a cloth lying on the floor is as immovable downwards as the floor).
   SelfCollisionStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
-                             double h, const Executor& exec);
+                             double h, const Executor& exec, const double* supports = nullptr);
 
   const SelfCollisionOptions& options() const { return options_; }
   /// The skin, m (see the design note): the least a vertex's skin box extends beyond its
@@ -105,12 +109,17 @@ class SelfCollider {
   void findFlatRegions(const Executor& exec);
   /// resolve's passes and failsafe.
   void resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
-                     const Executor& exec, SelfCollisionStats& stats);
+                     const Executor& exec, const double* supports, SelfCollisionStats& stats);
   /// Gauss-Seidel over the contacts found, in block order; returns the largest
-  /// displacement of a vertex (m, as stored).
-  double respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h, SelfCollisionStats& stats);
+  /// displacement of a vertex (m, as stored). `supports` as resolve's.
+  double respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h, const double* supports,
+                 SelfCollisionStats& stats);
 
   static constexpr Index kVertexGrain = 4096;
+  /// Sweeps of the response over a pass's contacts for the pushes and normal impulses
+  /// (sequential impulses, each contact's accumulated push and impulse >= 0); friction
+  /// follows in one more sweep.
+  static constexpr int kImpulseSweeps = 4;
   /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
   /// chunk's, and kept while every vertex stays inside its box.
   static constexpr double kSkin = 0.5;
@@ -133,6 +142,16 @@ class SelfCollider {
   Index blocksUsed_ = 0;
   std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
   std::vector<double> displacement_;       // (n) m, moved by the current response pass
+  /// respond's view of one contact: each vertex's share of a relative change, the obstacle
+  /// it rests on where that blocks it, and what the contact has given so far.
+  struct Share {
+    const Contact* contact;
+    double share[4];
+    const double* support[4];  // the obstacle's normal (supports), or null: free along n
+    double push;               // m, along the normal
+    double impulse;            // m/s, accumulated normal velocity change (>= 0)
+  };
+  std::vector<Share> shares_;  // the current response pass's contacts
   std::vector<double> push_;               // (3n, vertex-major) m, the last chunk's response moved x1 by this
   Vec3Array<S> unpushed_;                  // (n x 3) a touched vertex's x1 before this chunk's response
   std::vector<std::uint8_t> touchedFlag_;  // (n) moved by this chunk's response or failsafe

@@ -565,58 +565,137 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
 
 template <class S>
 double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
-                                SelfCollisionStats& stats) {
+                                const double* supports, SelfCollisionStats& stats) {
   const double mu = options_.friction;
   std::fill(displacement_.begin(), displacement_.end(), 0.0);
   double largest = 0;  // m, the largest entry of displacement_
+  // Every contact with a normal and a free side, in block order, with each vertex's share of
+  // a relative change (w beta / sw, beta the contact's weight of the vertex).
+  std::size_t capacity = 0;
+  for (Index k = 0; k < blocksUsed_; ++k) capacity += blocks_[static_cast<size_t>(k)].contacts.capacity();
+  if (shares_.capacity() < capacity) shares_.reserve(capacity);  // (grows only with the contact lists)
+  shares_.clear();
   for (Index k = 0; k < blocksUsed_; ++k) {
     for (const Contact& c : blocks_[static_cast<size_t>(k)].contacts) {
       ++stats.contacts;
       stats.vertexTriangle += c.vertexTriangle ? 1 : 0;
       const V n(c.normal[0], c.normal[1], c.normal[2]);
       if (n.squaredNorm() == 0) continue;  // no normal: left to the failsafe
-      double sw = 0, s1 = 0;
-      V vr = V::Zero();
-      double wi[4];
+      Share sh;
+      sh.contact = &c;
+      // A vertex resting on an obstacle whose push along n (the sign of its weight) would
+      // go into that obstacle moves only along the obstacle's surface: along n it counts
+      // with the inverse mass w (1 - (n.m)^2), and the other side takes the rest, so the
+      // pair still separates by what it must.
+      double sw = 0, wi[4];
       for (int i = 0; i < 4; ++i) {
         const Index j = c.vertex[i];
         wi[i] = static_cast<double>(w[j]);
-        sw += wi[i] * c.weights[i] * c.weights[i];
-        s1 += c.weights[i] * (static_cast<double>(x1(j, 0)) * n[0] + static_cast<double>(x1(j, 1)) * n[1] +
-                              static_cast<double>(x1(j, 2)) * n[2]);
-        vr += c.weights[i] * V(v1(j, 0), v1(j, 1), v1(j, 2));
+        double share = 1;
+        sh.support[i] = nullptr;
+        if (supports) {
+          const double* m = supports + 3 * j;
+          const double nm = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
+          if (c.weights[i] * nm < 0) {
+            sh.support[i] = m;
+            share = std::max(0.0, 1 - nm * nm);
+          }
+        }
+        sw += wi[i] * c.weights[i] * c.weights[i] * share;
       }
       if (!(sw > 0)) continue;
-      const auto apply = [&](const V& dx, const V& dv) {  // relative changes, distributed by w beta / sw
-        for (int i = 0; i < 4; ++i) {
-          const double f = wi[i] * c.weights[i] / sw;
-          if (f == 0) continue;
-          const Index j = c.vertex[i];
-          moved_[static_cast<size_t>(j)] = 1;
-          touch(j, x1);
-          double step2 = 0;
-          for (int a = 0; a < 3; ++a) {
-            const S before = x1(j, a);
-            x1(j, a) = static_cast<S>(static_cast<double>(before) + f * dx[a]);
-            v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + f * dv[a]);
-            const double d = static_cast<double>(x1(j, a)) - static_cast<double>(before);  // as stored
-            step2 += d * d;
-          }
-          double& total = displacement_[static_cast<size_t>(j)];
-          total += std::sqrt(step2);
-          largest = std::max(largest, total);
-        }
-      };
-      const double push = std::max(0.0, c.thickness - s1);
-      const double vn = vr.dot(n);
-      const double dvn = vn < 0 ? -vn : 0.0;
-      // Friction: the tangential relative velocity, reduced by at most mu x the normal change.
-      const V vt = vr - vn * n;
+      for (int i = 0; i < 4; ++i) sh.share[i] = wi[i] * c.weights[i] / sw;
+      shares_.push_back(sh);
+    }
+  }
+  // Relative changes dx, dv of one contact, distributed by the shares; a vertex the contact
+  // would push into the obstacle it rests on moves along that obstacle's surface only.
+  // `moves` false: velocities only.
+  const auto apply = [&](const Share& sh, const V& dxRelative, const V& dvRelative, bool moves) {
+    const Contact& c = *sh.contact;
+    for (int i = 0; i < 4; ++i) {
+      const double f = sh.share[i];
+      if (f == 0) continue;
+      const Index j = c.vertex[i];
+      V dx = f * dxRelative, dv = f * dvRelative;
+      if (const double* m = sh.support[i]) {  // along the surface only (also when an impulse is taken back)
+        const V mv(m[0], m[1], m[2]);
+        dx -= dx.dot(mv) * mv;
+        dv -= dv.dot(mv) * mv;
+      }
+      for (int a = 0; a < 3; ++a) v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + dv[a]);
+      if (!moves) continue;
+      moved_[static_cast<size_t>(j)] = 1;
+      touch(j, x1);
+      double step2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const S before = x1(j, a);
+        x1(j, a) = static_cast<S>(static_cast<double>(before) + dx[a]);
+        const double d = static_cast<double>(x1(j, a)) - static_cast<double>(before);  // as stored
+        step2 += d * d;
+      }
+      double& total = displacement_[static_cast<size_t>(j)];
+      total += std::sqrt(step2);
+      largest = std::max(largest, total);
+    }
+  };
+  const auto relative = [&](const Contact& c, const V& n, double* along) {  // relative velocity, and x1 along n
+    V vr = V::Zero();
+    double s1 = 0;
+    for (int i = 0; i < 4; ++i) {
+      const Index j = c.vertex[i];
+      if (along)
+        s1 += c.weights[i] * (static_cast<double>(x1(j, 0)) * n[0] + static_cast<double>(x1(j, 1)) * n[1] +
+                              static_cast<double>(x1(j, 2)) * n[2]);
+      vr += c.weights[i] * V(v1(j, 0), v1(j, 1), v1(j, 2));
+    }
+    if (along) *along = s1;
+    return vr;
+  };
+  // Sweep 1: the push to the thickness and the normal impulse that stops the approach.
+  for (Share& sh : shares_) {
+    const Contact& c = *sh.contact;
+    const V n(c.normal[0], c.normal[1], c.normal[2]);
+    double s1 = 0;
+    const double vn = relative(c, n, &s1).dot(n);
+    sh.push = std::max(0.0, c.thickness - s1);
+    sh.impulse = vn < 0 ? -vn : 0.0;
+    apply(sh, sh.push * n, sh.impulse * n, true);
+  }
+  // Sweeps 2 .. kImpulseSweeps: sequential impulses, each contact's accumulated normal
+  // impulse and push kept >= 0. A contact applied after another that shares a vertex may
+  // have left that vertex separating, or pushed beyond the thickness (an edge pair moves
+  // both its vertices, one of which an earlier contact had already stopped): the earlier
+  // contact now takes back what it gave in excess, so a resting layer ends at rest instead
+  // of being thrown up by overlapping contacts and falling back (jitter).
+  for (int sweep = 1; sweep < kImpulseSweeps; ++sweep) {
+    for (Share& sh : shares_) {
+      const Contact& c = *sh.contact;
+      const V n(c.normal[0], c.normal[1], c.normal[2]);
+      double s1 = 0;
+      const double vn = relative(c, n, &s1).dot(n);
+      const double next = std::max(0.0, sh.impulse - vn);
+      const double push = std::max(0.0, sh.push + c.thickness - s1);
+      if (next == sh.impulse && push == sh.push) continue;
+      apply(sh, (push - sh.push) * n, (next - sh.impulse) * n, push != sh.push);
+      sh.impulse = next;
+      sh.push = push;
+    }
+  }
+  // Friction: the tangential relative velocity, reduced by at most mu x the normal change
+  // (the impulse and the push, as a velocity over the chunk).
+  if (mu > 0) {
+    for (Share& sh : shares_) {
+      const Contact& c = *sh.contact;
+      const V n(c.normal[0], c.normal[1], c.normal[2]);
+      const V vr = relative(c, n, nullptr);
+      const V vt = vr - vr.dot(n) * n;
       const double vtLength = vt.norm();
-      const double budget = mu * (dvn + push / h);
+      const double budget = mu * (sh.impulse + sh.push / h);
       const double scale = vtLength > 0 ? std::min(1.0, budget / vtLength) : 0.0;
+      if (scale == 0) continue;
       const V dvt = -scale * vt;
-      apply(push * n + h * dvt, dvn * n + dvt);
+      apply(sh, h * dvt, dvt, true);
     }
   }
   return largest;
@@ -624,12 +703,13 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
 
 template <class S>
 SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1,
-                                            const ScalarArray<S>& w, double h, const Executor& exec) {
+                                            const ScalarArray<S>& w, double h, const Executor& exec,
+                                            const double* supports) {
   SelfCollisionStats stats;
   if (bvh_.triangleCount() < 2) return stats;
   for (const Index j : touched_) touchedFlag_[static_cast<size_t>(j)] = 0;  // (left by a chunk that threw)
   touched_.clear();
-  resolvePasses(x0, x1, v1, w, h, exec, stats);
+  resolvePasses(x0, x1, v1, w, h, exec, supports, stats);
   // What the response and the failsafe did to each vertex they moved (touch): the next
   // gathering's skin covers as much again (kPush). The others were not pushed.
   for (const Index j : lastTouched_)
@@ -647,7 +727,8 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
 
 template <class S>
 void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
-                                    double h, const Executor& exec, SelfCollisionStats& stats) {
+                                    double h, const Executor& exec, const double* supports,
+                                    SelfCollisionStats& stats) {
   for (int pass = 0;; ++pass) {
     const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;
@@ -668,7 +749,7 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
       // least `margin` apart over the chunk, and the response moved no vertex by more than
       // a quarter of that (a distance changes by at most twice the largest displacement):
       // nothing intersects, and further passes would only move vertices by less.
-      const double moved = respond(x1, v1, w, h, stats);
+      const double moved = respond(x1, v1, w, h, supports, stats);
       if (!guards && 2 * moved < 0.5 * margin) return;
       continue;
     }

@@ -105,6 +105,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   if (options_.selfCollision.enabled) {
     validateSelfCollision(options_.selfCollision, *model_, state_.x, "SimulationOptions.selfCollision");
     self_ = std::make_unique<SelfCollider<S>>(*model_, options_.selfCollision, state_.x, *executor_);
+    if (contacts_) contacts_->recordSupports();  // what each particle rests on, for the self-collision response
   }
   if (!options_.rigid.bodies.empty()) {
     const Vec3d& g = options_.gravity;
@@ -337,7 +338,9 @@ StepStatus Simulation<S>::stepWithContacts() {
     if (self_) {
       const auto selfStart =
           options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-      executor_->run([&] { self = self_->resolve(state_.x, nextX_, nextV_, w, h, *executor_); });
+      executor_->run([&] {
+        self = self_->resolve(state_.x, nextX_, nextV_, w, h, *executor_, contacts_ ? contacts_->supports() : nullptr);
+      });
       if (options_.profileEffects)
         selfSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - selfStart).count();
     }
