@@ -215,6 +215,7 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
                                          const ScalarArray<S>& w, double t0, double t1, const Executor& exec) {
   const Index n = static_cast<Index>(x1.rows());
   const double h = options_.thickness, eps = options_.epsilon;
+  const double supportReach = kSupportReach * h;
   exec.parallelForBlocks(n, kGrain, [&](Index block, Index b, Index e) {
     std::int64_t hits = 0, ccd = 0;
     double deepest = 0;
@@ -226,6 +227,19 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       if (w[i] == S(0)) continue;
       const V p0 = row(x0, i), p1 = row(x1, i);
       Contact c = detect(options_, p0, p1);
+      // Supports: the nearest obstacle within the thickness + supportReach at x1 (world
+      // normal), for a particle that needs no response in this chunk.
+      double nearest = h + supportReach;
+      V nearNormal{0, 0, 0};
+      if (support && !c.found)
+        for (const Obstacle& o : options_.obstacles) {
+          V nrm;
+          const double phi = distance(o, p1, nrm);
+          if (phi < nearest) {
+            nearest = phi;
+            nearNormal = nrm;
+          }
+        }
       // Mesh obstacles: the first impact along the segment in each mesh's frame; without
       // continuous detection only when x1 itself is within the thickness.
       for (size_t m = 0; m < model_->meshes().size(); ++m) {
@@ -235,15 +249,22 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
         const double length = norm(b1 - b0);
         // The whole chunk farther than the thickness from the mesh (every point of it is
         // within `length` of b1): nothing to find, as the queries below would confirm.
-        if (clearanceBound(clear, b1, length) > h + 2 * eps) continue;
+        // (With supports recorded, within their reach too.)
+        if (clearanceBound(clear, b1, length) > h + (support ? std::max(2 * eps, supportReach) : 2 * eps)) continue;
         // The distance at b1, looked up a little farther than needed (8 thicknesses) so
         // that it tells the next chunks to skip too.
         const double reach = 9 * h + eps + length;
-        const double d1 = meshDistance(model_->meshes()[m], b1, reach);
+        V closest;
+        const double d1 = meshDistance(model_->meshes()[m], b1, reach, support ? &closest : nullptr);
         clear[0] = b1.x;
         clear[1] = b1.y;
         clear[2] = b1.z;
         clear[3] = std::min(d1, reach);
+        if (support && d1 < nearest && d1 > 1e-9 * h) {
+          nearest = d1;
+          const V nb = (1 / d1) * (b1 - closest);
+          nearNormal = mo.path ? v(kinematicRotate(*mo.path, d3(nb), t1)) : nb;
+        }
         const double depth = h - d1;
         if (depth <= 0 && !options_.continuous) continue;
         if (depth <= 0 && d1 - length > h + 2 * eps) continue;  // the segment stays clear
@@ -259,7 +280,14 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
           c.mesh = static_cast<Index>(m);
         }
       }
-      if (!c.found) continue;
+      if (!c.found) {
+        if (support && nearest < h + supportReach) {
+          support[3 * i] = nearNormal.x;
+          support[3 * i + 1] = nearNormal.y;
+          support[3 * i + 2] = nearNormal.z;
+        }
+        continue;
+      }
       ++hits;
       ccd += c.continuous ? 1 : 0;
       deepest = std::max(deepest, c.depth);

@@ -64,10 +64,12 @@ class ContactSolver {
 
   const CollisionOptions& options() const { return options_; }
   /// From now on, resolve records each particle's support: the unit normal (out of the
-  /// obstacle) of the contact it resolved for that particle in its last call, or zero where
-  /// it resolved none. Self-collision reads it so that it does not push a particle resting
-  /// on an obstacle into that obstacle (SelfCollider::resolve). Off by default: a scene
-  /// without self-collision does not pay for it.
+  /// obstacle) of the contact it resolved for that particle in its last call; for a particle
+  /// it did not need to resolve, the normal of the nearest obstacle within the thickness x
+  /// (1 + kSupportReach) of its end position (a resting particle sits at the thickness and
+  /// needs a response only in some chunks); zero otherwise. Self-collision reads it so that
+  /// it does not push a particle resting on an obstacle into that obstacle
+  /// (SelfCollider::resolve). Off by default: a scene without self-collision does not pay for it.
   void recordSupports();
   /// (particles x 3) the supports of the last resolve; null unless recordSupports was called.
   const double* supports() const { return support_.empty() ? nullptr : support_.data(); }
@@ -87,6 +89,9 @@ class ContactSolver {
   /// Particles (and edges) per parallel block: a contact test costs hundreds of
   /// nanoseconds, so even a 32^2 cloth is split among the threads.
   static constexpr Index kGrain = 128;
+  /// How far beyond the thickness a particle still rests on an obstacle (supports), in
+  /// thicknesses.
+  static constexpr double kSupportReach = 0.25;
 
  private:
   std::int64_t resolveEdges(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,

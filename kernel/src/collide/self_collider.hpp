@@ -120,6 +120,9 @@ class SelfCollider {
   /// (sequential impulses, each contact's accumulated push and impulse >= 0); friction
   /// follows in one more sweep.
   static constexpr int kImpulseSweeps = 4;
+  /// A contact whose blocked vertices would leave it less than this share of its inverse
+  /// mass along n (sum w beta^2) ignores the supports (see respond).
+  static constexpr double kSupportedMass = 0.1;
   /// The skin, in thicknesses: candidates are gathered for boxes this much larger than the
   /// chunk's, and kept while every vertex stays inside its box.
   static constexpr double kSkin = 0.5;
@@ -146,10 +149,12 @@ class SelfCollider {
   /// it rests on where that blocks it, and what the contact has given so far.
   struct Share {
     const Contact* contact;
-    double share[4];
-    const double* support[4];  // the obstacle's normal (supports), or null: free along n
-    double push;               // m, along the normal
-    double impulse;            // m/s, accumulated normal velocity change (>= 0)
+    double share[4];          // of the push and the normal impulse: w beta / sw
+    double frictionShare[4];  // w beta / sum w beta^2, as without supports
+    const double* rests[4];   // the normal of the obstacle the vertex rests on (supports), or null
+    bool blocked[4];          // it would be pushed into that obstacle: tangent plane only
+    double push;              // m, accumulated along the normal (>= 0)
+    double impulse;           // m/s, accumulated normal velocity change (>= 0)
   };
   std::vector<Share> shares_;  // the current response pass's contacts
   std::vector<double> push_;               // (3n, vertex-major) m, the last chunk's response moved x1 by this

@@ -571,8 +571,8 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
   double largest = 0;  // m, the largest entry of displacement_
   // Every contact with a normal and a free side, in block order, with each vertex's share of
   // a relative change (w beta / sw, beta the contact's weight of the vertex).
-  std::size_t capacity = 0;
-  for (Index k = 0; k < blocksUsed_; ++k) capacity += blocks_[static_cast<size_t>(k)].contacts.capacity();
+  std::size_t capacity = 0;  // (over every block: the used ones change from chunk to chunk)
+  for (const Block& block : blocks_) capacity += block.contacts.capacity();
   if (shares_.capacity() < capacity) shares_.reserve(capacity);  // (grows only with the contact lists)
   shares_.clear();
   for (Index k = 0; k < blocksUsed_; ++k) {
@@ -584,44 +584,57 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       Share sh;
       sh.contact = &c;
       // A vertex resting on an obstacle whose push along n (the sign of its weight) would
-      // go into that obstacle moves only along the obstacle's surface: along n it counts
-      // with the inverse mass w (1 - (n.m)^2), and the other side takes the rest, so the
-      // pair still separates by what it must.
-      double sw = 0, wi[4];
+      // go into that obstacle is blocked: it moves only in the obstacle's tangent plane, so
+      // along n it counts with the inverse mass w (1 - (n.m)^2) and the other side takes
+      // the rest; the pair still separates by what it must. Unless that leaves the contact
+      // less than kSupportedMass of its inverse mass along n (the other side pinned, or
+      // pressing along m): then the obstacle's next chunk pushes back, as without supports.
+      double sw = 0, free = 0, wi[4], nm[4];
       for (int i = 0; i < 4; ++i) {
         const Index j = c.vertex[i];
         wi[i] = static_cast<double>(w[j]);
-        double share = 1;
-        sh.support[i] = nullptr;
+        sh.rests[i] = nullptr;
+        nm[i] = 0;
         if (supports) {
           const double* m = supports + 3 * j;
-          const double nm = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
-          if (c.weights[i] * nm < 0) {
-            sh.support[i] = m;
-            share = std::max(0.0, 1 - nm * nm);
+          if (m[0] != 0 || m[1] != 0 || m[2] != 0) {
+            sh.rests[i] = m;
+            nm[i] = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
           }
         }
-        sw += wi[i] * c.weights[i] * c.weights[i] * share;
+        const double wb2 = wi[i] * c.weights[i] * c.weights[i];
+        free += wb2;
+        sw += c.weights[i] * nm[i] < 0 ? wb2 * std::max(0.0, 1 - nm[i] * nm[i]) : wb2;
+      }
+      const bool blocking = sw >= kSupportedMass * free;
+      if (!blocking) {  // as without supports
+        sw = free;
+        for (int i = 0; i < 4; ++i) sh.rests[i] = nullptr;
       }
       if (!(sw > 0)) continue;
-      for (int i = 0; i < 4; ++i) sh.share[i] = wi[i] * c.weights[i] / sw;
+      for (int i = 0; i < 4; ++i) {
+        sh.blocked[i] = blocking && c.weights[i] * nm[i] < 0;
+        sh.share[i] = wi[i] * c.weights[i] / sw;
+        sh.frictionShare[i] = wi[i] * c.weights[i] / free;
+      }
       shares_.push_back(sh);
     }
   }
-  // Relative changes dx, dv of one contact, distributed by the shares; a vertex the contact
-  // would push into the obstacle it rests on moves along that obstacle's surface only.
-  // `moves` false: velocities only.
-  const auto apply = [&](const Share& sh, const V& dxRelative, const V& dvRelative, bool moves) {
+  // Relative changes dx, dv of one contact, distributed by `share` (Share::share or
+  // ::frictionShare). A blocked vertex moves in its obstacle's tangent plane only (also
+  // when an impulse is taken back); any other vertex resting on an obstacle is not moved
+  // into it. `moves` false: velocities only.
+  const auto apply = [&](const Share& sh, const double* share, const V& dxRelative, const V& dvRelative, bool moves) {
     const Contact& c = *sh.contact;
     for (int i = 0; i < 4; ++i) {
-      const double f = sh.share[i];
+      const double f = share[i];
       if (f == 0) continue;
       const Index j = c.vertex[i];
       V dx = f * dxRelative, dv = f * dvRelative;
-      if (const double* m = sh.support[i]) {  // along the surface only (also when an impulse is taken back)
+      if (const double* m = sh.rests[i]) {
         const V mv(m[0], m[1], m[2]);
-        dx -= dx.dot(mv) * mv;
-        dv -= dv.dot(mv) * mv;
+        dx -= (sh.blocked[i] ? dx.dot(mv) : std::min(0.0, dx.dot(mv))) * mv;
+        dv -= (sh.blocked[i] ? dv.dot(mv) : std::min(0.0, dv.dot(mv))) * mv;
       }
       for (int a = 0; a < 3; ++a) v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + dv[a]);
       if (!moves) continue;
@@ -660,7 +673,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
     const double vn = relative(c, n, &s1).dot(n);
     sh.push = std::max(0.0, c.thickness - s1);
     sh.impulse = vn < 0 ? -vn : 0.0;
-    apply(sh, sh.push * n, sh.impulse * n, true);
+    apply(sh, sh.share, sh.push * n, sh.impulse * n, true);
   }
   // Sweeps 2 .. kImpulseSweeps: sequential impulses, each contact's accumulated normal
   // impulse and push kept >= 0. A contact applied after another that shares a vertex may
@@ -677,13 +690,15 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       const double next = std::max(0.0, sh.impulse - vn);
       const double push = std::max(0.0, sh.push + c.thickness - s1);
       if (next == sh.impulse && push == sh.push) continue;
-      apply(sh, (push - sh.push) * n, (next - sh.impulse) * n, push != sh.push);
+      apply(sh, sh.share, (push - sh.push) * n, (next - sh.impulse) * n, push != sh.push);
       sh.impulse = next;
       sh.push = push;
     }
   }
   // Friction: the tangential relative velocity, reduced by at most mu x the normal change
-  // (the impulse and the push, as a velocity over the chunk).
+  // (the impulse and the push, as a velocity over the chunk). Shared as without supports:
+  // a blocked vertex moves in the tangent plane, where friction acts (the normal shares
+  // would give the pair more than its relative change, reversing the sliding).
   if (mu > 0) {
     for (Share& sh : shares_) {
       const Contact& c = *sh.contact;
@@ -695,7 +710,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       const double scale = vtLength > 0 ? std::min(1.0, budget / vtLength) : 0.0;
       if (scale == 0) continue;
       const V dvt = -scale * vt;
-      apply(sh, h * dvt, dvt, true);
+      apply(sh, sh.frictionShare, h * dvt, dvt, true);
     }
   }
   return largest;

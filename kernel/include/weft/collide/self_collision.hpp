@@ -55,15 +55,21 @@
 //   response    Each contact (d < thickness at some s) gives a normal n (between the closest
 //               points at s) and weights beta (VT: 1 on the vertex, -b_i on the triangle's
 //               corners at barycentric b; EE: 1 - a, a on one edge, -(1 - b), -b on the
-//               other). Gauss-Seidel over the contacts in a fixed order: the end positions
-//               are pushed apart along n to the thickness (x1_i += w_i beta_i lambda n,
-//               lambda = (thickness - sum beta_i x1_i . n) / sum w_i beta_i^2, w the inverse
-//               masses), an approaching relative normal velocity becomes zero (inelastic),
-//               and the tangential relative velocity feels Coulomb friction bounded by
-//               friction x (normal velocity change + push / chunk length), applied to the
-//               end positions too so a resting layer does not creep. Detection and response
-//               alternate up to `iterations` times; after a response only the candidates
-//               with a vertex it moved (or that were in contact) are advanced again.
+//               other). Sweeps over the contacts in a fixed order (Gauss-Seidel): the end
+//               positions are pushed apart along n to the thickness (x1_i += w_i beta_i
+//               lambda n, lambda = (thickness - sum beta_i x1_i . n) / sum w_i beta_i^2, w
+//               the inverse masses) and an approaching relative normal velocity becomes zero
+//               (inelastic); three more sweeps are sequential impulses, each contact's
+//               accumulated push and impulse kept >= 0 (a contact takes back what a later
+//               one sharing its vertices made excessive: no jitter of resting layers); a last
+//               sweep applies Coulomb friction to the tangential relative velocity, bounded
+//               by friction x (normal impulse + push / chunk length), applied to the end
+//               positions too so a resting layer does not creep. A particle resting on an
+//               obstacle (the obstacle pass's supports) that a contact would push into it
+//               moves only in the obstacle's tangent plane: the other side takes the push.
+//               Detection and response alternate up to `iterations` times; after a response
+//               only the candidates with a vertex it moved (or that were in contact) are
+//               advanced again.
 //   early stop  Every detection also tests each contact against the failsafe's threshold
 //               theta (below). When none comes below it, every pair is proven to stay at
 //               least m apart over the chunk (m: the least of the contacts' theta / 2 and
