@@ -971,6 +971,22 @@ TEST(SelfCollisionScenes, OffCostsNothing) {
   EXPECT_EQ(sim.selfCollider(), nullptr);
   ASSERT_TRUE(sim.run(10).ok());
   EXPECT_EQ(sim.totalSelfCollision().passes, 0);
+  EXPECT_EQ(sim.contactListBytes(), 0U);
+}
+
+TEST(SelfCollisionScenes, ContactListBytesHoldTheListsAndOnlyGrow) {
+  // What `weft soak` counts apart from a leak: the lists' capacities, at least the current
+  // candidates (two indices each), never shrinking while the cloth folds.
+  Simulation<double> sim = makeScene<double>("fold", 12, true);
+  std::size_t last = sim.contactListBytes();
+  for (int k = 0; k < 20; ++k) {
+    ASSERT_TRUE(sim.run(static_cast<Index>(std::ceil(0.05 / sim.timeStep()))).ok());
+    const std::size_t now = sim.contactListBytes();
+    EXPECT_GE(now, last) << "after " << (k + 1) * 0.05 << " s";
+    EXPECT_GE(now, 2 * sizeof(Index) * static_cast<std::size_t>(sim.selfCollider()->candidateCount()));
+    last = now;
+  }
+  EXPECT_GT(last, 0U);
 }
 
 /// Settles `scene` for `seconds`, then steps it 0.5 s more: the fastest particle speed over

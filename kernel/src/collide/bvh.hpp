@@ -141,6 +141,10 @@ struct ClosestTriangle {
 
 /// Reusable work buffers of the parallel pair queries (keep one per querying thread).
 class BvhPairScratch {
+ public:
+  /// Bytes its buffers hold (capacities): they grow with the largest query so far.
+  std::size_t heldBytes() const;
+
  private:
   template <class>
   friend class TriangleBvh;

@@ -42,6 +42,9 @@ class SelfCollider {
   double skin() const { return skin_; }
   /// Triangle pairs in the current candidate list.
   Index candidateCount() const { return static_cast<Index>(pairs_.size()); }
+  /// Bytes held by the buffers that grow with the candidates and contacts (capacities:
+  /// they keep the largest size so far, so a step allocates only when it lists more).
+  std::size_t listBytes() const;
 
   /// Checkpoints: the candidate list, the skin boxes it was gathered for and the last
   /// chunk's pushes (a list gathered at another time would cull other pairs, so a resumed run keeps

@@ -7,6 +7,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <type_traits>
 
 #include "collide/self_collider.hpp"
 #include "weft/collide/self_collision.hpp"
@@ -223,6 +224,14 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   candidatesValid_ = valid;
 }
 
+template <class S>
+std::size_t SelfCollider<S>::listBytes() const {
+  const auto bytes = [](const auto& v) { return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+  std::size_t total = bytes(pairs_) + bytes(pairHit_) + bytes(blocks_) + bytes(shares_) + scratch_.heldBytes();
+  for (const Block& block : blocks_) total += bytes(block.primitives) + bytes(block.pairEnd) + bytes(block.contacts);
+  return total;
+}
+
 #define WEFT_INSTANTIATE_CANDIDATES(S)                                                                       \
   template std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>&, const Executor&);            \
   template bool SelfCollider<S>::candidatesCover(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&); \
@@ -231,7 +240,8 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   template void SelfCollider<S>::useCandidates();                                                            \
   template void SelfCollider<S>::expandBlock(Index);                                                         \
   template void SelfCollider<S>::saveCarry(ArchiveWriter&) const;                                            \
-  template void SelfCollider<S>::loadCarry(ArchiveReader&);
+  template void SelfCollider<S>::loadCarry(ArchiveReader&);                                                  \
+  template std::size_t SelfCollider<S>::listBytes() const;
 WEFT_INSTANTIATE_CANDIDATES(float)
 WEFT_INSTANTIATE_CANDIDATES(double)
 #undef WEFT_INSTANTIATE_CANDIDATES

@@ -366,6 +366,11 @@ StepStatus Simulation<S>::stepWithContacts() {
 }
 
 template <class S>
+std::size_t Simulation<S>::contactListBytes() const {
+  return self_ ? self_->listBytes() : 0;
+}
+
+template <class S>
 SceneEffectTimes Simulation<S>::effectTimes() const {
   SceneEffectTimes t;
   t.forces = forces_.effectTimes();

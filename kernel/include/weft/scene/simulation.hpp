@@ -149,6 +149,11 @@ class Simulation {
   }
   /// The self-collision pass (null when SimulationOptions::selfCollision is off).
   const SelfCollider<S>* selfCollider() const { return self_.get(); }
+  /// Bytes held by the buffers that grow with the contacts: the self-collision candidate,
+  /// primitive and contact lists (0 when self-collision is off). They keep their largest
+  /// size so far, so a step allocates only when it lists more than any before: a cloth
+  /// whose contacts keep growing (wrung tighter and tighter) grows its memory by this much.
+  std::size_t contactListBytes() const;
   /// The contact solver (null without obstacles).
   const ContactSolver<S>* contactSolver() const { return contacts_.get(); }
   /// The rigid bodies, stepped with the particles in the same fixed step (null without
