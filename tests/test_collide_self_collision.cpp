@@ -632,6 +632,32 @@ TEST(SelfCollisionResponse, AClothOnAnObstacleIsNotPushedIntoIt) {
   }
 }
 
+TEST(SelfCollisionResponse, ASupportTheResponsePushesAwayFromChangesNothing) {
+  // The upper cloth rests on an obstacle below it too (m = y, say a shelf it overhangs):
+  // every push and impulse moves it away from that obstacle, so the supports block nothing,
+  // and the response (friction off) is the same bits as without supports, its take-backs
+  // included.
+  TwoLayers with = twoLayers(), without = twoLayers();
+  const Index n = with.built.model.particleCount();
+  std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
+  for (Index i = TwoLayers::kLower; i < n; ++i) supports[3 * static_cast<size_t>(i) + 1] = 1;
+  Executor exec(2);
+  SelfCollisionOptions options;
+  options.enabled = true;
+  options.friction = 0;
+  SelfCollider<double> a(with.built.model, options, with.built.state.x, exec);
+  SelfCollider<double> b(without.built.model, options, without.built.state.x, exec);
+  const SelfCollisionStats sa = a.resolve(with.built.state.x, with.x1, with.v1, with.w, 1e-3, exec, supports.data());
+  const SelfCollisionStats sb = b.resolve(without.built.state.x, without.x1, without.v1, without.w, 1e-3, exec);
+  EXPECT_GT(sa.contacts, 0);
+  EXPECT_EQ(sa.contacts, sb.contacts);
+  for (Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(with.x1(i, c), without.x1(i, c)) << "particle " << i << " axis " << c;
+      EXPECT_EQ(with.v1(i, c), without.v1(i, c)) << "particle " << i << " axis " << c;
+    }
+}
+
 TEST(SelfCollisionResponse, APinnedClothPressingOneOnAnObstacleStillSeparates) {
   // The upper cloth pinned (w = 0) and the lower on a floor: no side can take the push
   // along n, so the supports are ignored for these contacts (the floor pushes back in its

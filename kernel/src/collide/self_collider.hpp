@@ -42,8 +42,10 @@ class SelfCollider {
   double skin() const { return skin_; }
   /// Triangle pairs in the current candidate list.
   Index candidateCount() const { return static_cast<Index>(pairs_.size()); }
-  /// Bytes held by the buffers that grow with the candidates and contacts (capacities:
-  /// they keep the largest size so far, so a step allocates only when it lists more).
+  /// Bytes held by the buffers that grow with the candidates and contacts: the candidate,
+  /// primitive and contact lists, the BVH pair query's scratch (capacities: they keep the
+  /// largest size so far, so a step allocates only when it lists more) and the response's
+  /// current contacts.
   std::size_t listBytes() const;
 
   /// Checkpoints: the candidate list, the skin boxes it was gathered for and the last

@@ -620,12 +620,16 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       shares_.push_back(sh);
     }
   }
-  // Relative changes dx, dv of one contact, distributed by `share` (Share::share or
-  // ::frictionShare). A blocked vertex moves in its obstacle's tangent plane only (also
-  // when an impulse is taken back); any other vertex resting on an obstacle is not moved
-  // into it. `moves` false: velocities only.
-  const auto apply = [&](const Share& sh, const double* share, const V& dxRelative, const V& dvRelative, bool moves) {
+  // Relative changes dx, dv of one contact, distributed by the shares. A blocked vertex
+  // moves in its obstacle's tangent plane only (also when a push or impulse is taken back:
+  // the map is linear, a take-back undoes exactly what was given). The push and impulse
+  // move any other vertex resting on an obstacle away from it (beta n . m >= 0), and their
+  // take-backs never below where the contact started it: left whole. Friction does not
+  // move it into its obstacle (`friction`: the one-sided cut, and Share::frictionShare).
+  // `moves` false: velocities only.
+  const auto apply = [&](const Share& sh, bool friction, const V& dxRelative, const V& dvRelative, bool moves) {
     const Contact& c = *sh.contact;
+    const double* share = friction ? sh.frictionShare : sh.share;
     for (int i = 0; i < 4; ++i) {
       const double f = share[i];
       if (f == 0) continue;
@@ -633,8 +637,13 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       V dx = f * dxRelative, dv = f * dvRelative;
       if (const double* m = sh.rests[i]) {
         const V mv(m[0], m[1], m[2]);
-        dx -= (sh.blocked[i] ? dx.dot(mv) : std::min(0.0, dx.dot(mv))) * mv;
-        dv -= (sh.blocked[i] ? dv.dot(mv) : std::min(0.0, dv.dot(mv))) * mv;
+        if (sh.blocked[i]) {
+          dx -= dx.dot(mv) * mv;
+          dv -= dv.dot(mv) * mv;
+        } else if (friction) {
+          dx -= std::min(0.0, dx.dot(mv)) * mv;
+          dv -= std::min(0.0, dv.dot(mv)) * mv;
+        }
       }
       for (int a = 0; a < 3; ++a) v1(j, a) = static_cast<S>(static_cast<double>(v1(j, a)) + dv[a]);
       if (!moves) continue;
@@ -673,7 +682,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
     const double vn = relative(c, n, &s1).dot(n);
     sh.push = std::max(0.0, c.thickness - s1);
     sh.impulse = vn < 0 ? -vn : 0.0;
-    apply(sh, sh.share, sh.push * n, sh.impulse * n, true);
+    apply(sh, false, sh.push * n, sh.impulse * n, true);
   }
   // Sweeps 2 .. kImpulseSweeps: sequential impulses, each contact's accumulated normal
   // impulse and push kept >= 0. A contact applied after another that shares a vertex may
@@ -690,7 +699,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       const double next = std::max(0.0, sh.impulse - vn);
       const double push = std::max(0.0, sh.push + c.thickness - s1);
       if (next == sh.impulse && push == sh.push) continue;
-      apply(sh, sh.share, (push - sh.push) * n, (next - sh.impulse) * n, push != sh.push);
+      apply(sh, false, (push - sh.push) * n, (next - sh.impulse) * n, push != sh.push);
       sh.impulse = next;
       sh.push = push;
     }
@@ -710,7 +719,7 @@ double SelfCollider<S>::respond(Vec3Array<S>& x1, Vec3Array<S>& v1, const Scalar
       const double scale = vtLength > 0 ? std::min(1.0, budget / vtLength) : 0.0;
       if (scale == 0) continue;
       const V dvt = -scale * vt;
-      apply(sh, sh.frictionShare, h * dvt, dvt, true);
+      apply(sh, true, h * dvt, dvt, true);
     }
   }
   return largest;
