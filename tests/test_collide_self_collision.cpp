@@ -607,8 +607,7 @@ TEST(SelfCollisionResponse, AClothOnAnObstacleIsNotPushedIntoIt) {
     options.enabled = true;
     SelfCollider<double> collider(t.built.model, options, t.built.state.x, exec);
     const Vec3Array<double> before = t.x1, vBefore = t.v1;
-    const SelfCollisionStats stats =
-        collider.resolve(t.built.state.x, t.x1, t.v1, t.w, 1e-3, exec, supports.data());
+    const SelfCollisionStats stats = collider.resolve(t.built.state.x, t.x1, t.v1, t.w, 1e-3, exec, supports.data());
     EXPECT_GT(stats.contacts, 0);
     EXPECT_EQ(stats.frozen, 0) << "the response alone separates the layers";
     for (Index i = 0; i < TwoLayers::kLower; ++i) {
@@ -624,7 +623,7 @@ TEST(SelfCollisionResponse, AClothOnAnObstacleIsNotPushedIntoIt) {
     for (Index i = TwoLayers::kLower; i < n; ++i) {
       const Index r = (i - TwoLayers::kLower) / 4, c = (i - TwoLayers::kLower) % 4;
       if (r == 3 || c == 3) continue;  // beyond the lower cloth's border
-      double below = -1;  // the lower cloth's highest particle (it moved within its tangent plane)
+      double below = -1;               // the lower cloth's highest particle (it moved within its tangent plane)
       for (Index j = 0; j < TwoLayers::kLower; ++j) below = std::max(below, t.x1(j, 1));
       EXPECT_GT(t.x1(i, 1) - below, 0.0038) << "m: particle " << i << ", m = " << m.transpose();
       EXPECT_GT(t.v1(i, 1), -0.2) << "m/s: particle " << i << ", m = " << m.transpose();

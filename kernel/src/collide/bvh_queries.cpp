@@ -20,14 +20,15 @@
 namespace weft {
 
 std::size_t BvhPairScratch::heldBytes() const {
-  const auto bytes = [](const auto& v) { return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+  const auto bytes = [](const auto& v) {
+    return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type);
+  };
   std::size_t total = bytes(front_) + bytes(next_) + bytes(taskPairs_) + bytes(threadLevels_) + bytes(keys_) +
                       bytes(keysSwap_) + bytes(histogram_);
   for (const TaskPairs& t : taskPairs_) total += bytes(t.pairs);
   for (const ThreadLevels& t : threadLevels_) total += bytes(t.leaves) + bytes(t.level[0]) + bytes(t.level[1]);
   return total;
 }
-
 
 using namespace bvh_detail;
 

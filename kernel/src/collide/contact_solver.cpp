@@ -292,10 +292,10 @@ CollisionStats ContactSolver<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>& x
       ccd += c.continuous ? 1 : 0;
       deepest = std::max(deepest, c.depth);
       V vel = row(v1, i), normal;
-      const V p = c.obstacle ? respondAnalytic(options_, c, p0, p1, vel, normal)
-                             : respondMesh(options_, options_.meshes[static_cast<size_t>(c.mesh)],
-                                           model_->meshes()[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel,
-                                           normal);
+      const V p = c.obstacle
+                      ? respondAnalytic(options_, c, p0, p1, vel, normal)
+                      : respondMesh(options_, options_.meshes[static_cast<size_t>(c.mesh)],
+                                    model_->meshes()[static_cast<size_t>(c.mesh)], c.s, p0, p1, t0, t1, vel, normal);
       setRow(x1, i, p);
       setRow(v1, i, vel);
       if (support) {

@@ -148,8 +148,8 @@ class SelfCollider {
   std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
   std::vector<Block> blocks_;
   Index blocksUsed_ = 0;
-  std::vector<std::uint8_t> frozen_;       // (n) stopped by the failsafe in this chunk
-  std::vector<double> displacement_;       // (n) m, moved by the current response pass
+  std::vector<std::uint8_t> frozen_;  // (n) stopped by the failsafe in this chunk
+  std::vector<double> displacement_;  // (n) m, moved by the current response pass
   /// respond's view of one contact: each vertex's share of a relative change, the obstacle
   /// it rests on where that blocks it, and what the contact has given so far.
   struct Share {
@@ -161,7 +161,7 @@ class SelfCollider {
     double push;              // m, accumulated along the normal (>= 0)
     double impulse;           // m/s, accumulated normal velocity change (>= 0)
   };
-  std::vector<Share> shares_;  // the current response pass's contacts
+  std::vector<Share> shares_;              // the current response pass's contacts
   std::vector<double> push_;               // (3n, vertex-major) m, the last chunk's response moved x1 by this
   Vec3Array<S> unpushed_;                  // (n x 3) a touched vertex's x1 before this chunk's response
   std::vector<std::uint8_t> touchedFlag_;  // (n) moved by this chunk's response or failsafe

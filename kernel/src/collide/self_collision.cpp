@@ -751,8 +751,7 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
 
 template <class S>
 void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
-                                    double h, const Executor& exec, const double* supports,
-                                    SelfCollisionStats& stats) {
+                                    double h, const Executor& exec, const double* supports, SelfCollisionStats& stats) {
   for (int pass = 0;; ++pass) {
     const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;

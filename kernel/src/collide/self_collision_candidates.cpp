@@ -226,11 +226,13 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
 
 template <class S>
 std::size_t SelfCollider<S>::listBytes() const {
-  const auto bytes = [](const auto& v) { return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type); };
+  const auto bytes = [](const auto& v) {
+    return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type);
+  };
   // (shares_ is reserved to every block's contact capacity at once but holds, and
   // touches, only one pass's contacts: its size counts.)
-  std::size_t total = bytes(pairs_) + bytes(pairHit_) + bytes(blocks_) + shares_.size() * sizeof(Share) +
-                      scratch_.heldBytes();
+  std::size_t total =
+      bytes(pairs_) + bytes(pairHit_) + bytes(blocks_) + shares_.size() * sizeof(Share) + scratch_.heldBytes();
   for (const Block& block : blocks_) total += bytes(block.primitives) + bytes(block.pairEnd) + bytes(block.contacts);
   return total;
 }
