@@ -561,6 +561,23 @@ std::pair<Index, SelfCollisionStats> oneChunk(const ModelAndState<S>& built, boo
   return {collider.candidateCount(), stats};
 }
 
+/// A size x size cloth of spacing 0.1 m lying flat at y = 5 mm (on a floor, say).
+ClothGridSpec smallGrid(Index size) {
+  ClothGridSpec spec;
+  spec.width = spec.height = size;
+  spec.spacing = 0.1;
+  spec.origin = {0, 0.005, 0};
+  return spec;
+}
+
+/// ContactSolver::supports for n particles: normal m for those in [begin, end), zero elsewhere.
+std::vector<double> supportsOf(Index n, Index begin, Index end, const Eigen::Vector3d& m = {0, 1, 0}) {
+  std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
+  for (Index i = begin; i < end; ++i)
+    for (int a = 0; a < 3; ++a) supports[3 * static_cast<size_t>(i) + static_cast<size_t>(a)] = m[a];
+  return supports;
+}
+
 /// Two 4 x 4 cloths of spacing 0.1 m, the upper one shifted by half a spacing: the lower
 /// lies at y = 5 mm (on a floor, say), the upper comes down from 9 to 7.5 mm over the chunk
 /// at 1 m/s, within the 4 mm thickness of the lower one. Particles [0, 16) are the lower
@@ -573,10 +590,7 @@ struct TwoLayers {
 };
 TwoLayers twoLayers() {
   ModelBuilder<double> b;
-  ClothGridSpec spec;
-  spec.width = spec.height = 4;
-  spec.spacing = 0.1;
-  spec.origin = {0, 0.005, 0};
+  ClothGridSpec spec = smallGrid(4);
   addClothGrid(b, spec);
   spec.origin = {0.05, 0.009, 0.05};
   addClothGrid(b, spec);
@@ -599,9 +613,7 @@ TEST(SelfCollisionResponse, AClothOnAnObstacleIsNotPushedIntoIt) {
   for (const Eigen::Vector3d& m : {Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(tilt, std::sqrt(1 - tilt * tilt), 0)}) {
     TwoLayers t = twoLayers();
     const Index n = t.built.model.particleCount();
-    std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
-    for (Index i = 0; i < TwoLayers::kLower; ++i)
-      for (int a = 0; a < 3; ++a) supports[3 * static_cast<size_t>(i) + static_cast<size_t>(a)] = m[a];
+    const std::vector<double> supports = supportsOf(n, 0, TwoLayers::kLower, m);
     Executor exec(2);
     SelfCollisionOptions options;
     options.enabled = true;
@@ -638,8 +650,7 @@ TEST(SelfCollisionResponse, ASupportTheResponsePushesAwayFromChangesNothing) {
   // included.
   TwoLayers with = twoLayers(), without = twoLayers();
   const Index n = with.built.model.particleCount();
-  std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
-  for (Index i = TwoLayers::kLower; i < n; ++i) supports[3 * static_cast<size_t>(i) + 1] = 1;
+  const std::vector<double> supports = supportsOf(n, TwoLayers::kLower, n);
   Executor exec(2);
   SelfCollisionOptions options;
   options.enabled = true;
@@ -663,8 +674,7 @@ TEST(SelfCollisionResponse, APinnedClothPressingOneOnAnObstacleStillSeparates) {
   // next chunk) rather than the contacts being dropped.
   TwoLayers t = twoLayers();
   const Index n = t.built.model.particleCount();
-  std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
-  for (Index i = 0; i < TwoLayers::kLower; ++i) supports[3 * static_cast<size_t>(i) + 1] = 1;
+  const std::vector<double> supports = supportsOf(n, 0, TwoLayers::kLower);
   for (Index i = TwoLayers::kLower; i < n; ++i) t.w[i] = 0;
   Executor exec(2);
   SelfCollisionOptions options;
@@ -687,10 +697,7 @@ TEST(SelfCollisionResponse, FrictionOnAClothLyingOnAnObstacleDoesNotReverseTheSl
   // lower cloth afterwards, not the other way (friction shared like the push, which the
   // blocked lower corners do not take, would give the pair 1 + sum b_i^2 times the change).
   ModelBuilder<double> b;
-  ClothGridSpec spec;
-  spec.width = spec.height = 2;
-  spec.spacing = 0.1;
-  spec.origin = {0, 0.005, 0};
+  ClothGridSpec spec = smallGrid(2);
   addClothGrid(b, spec);
   const Index corner = b.particleCount();
   spec.origin = {0.03, 0.0085, 0.06};
@@ -706,8 +713,7 @@ TEST(SelfCollisionResponse, FrictionOnAClothLyingOnAnObstacleDoesNotReverseTheSl
     v1(i, 0) = 0.02;
   }
   const ScalarArray<double> w = ScalarArray<double>::Ones(n);
-  std::vector<double> supports(3 * static_cast<size_t>(n), 0.0);
-  for (Index i = 0; i < corner; ++i) supports[3 * static_cast<size_t>(i) + 1] = 1;
+  const std::vector<double> supports = supportsOf(n, 0, corner);
   Executor exec(2);
   SelfCollisionOptions options;
   options.enabled = true;

@@ -140,6 +140,12 @@ struct ClosestTriangle {
 };
 
 /// Reusable work buffers of the parallel pair queries (keep one per querying thread).
+/// Bytes a vector holds (its capacity), for memory reports.
+template <class T>
+std::size_t vectorBytes(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+
 class BvhPairScratch {
  public:
   /// Bytes its buffers hold (capacities): they grow with the largest query so far.

@@ -9,7 +9,6 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "bvh_internal.hpp"
@@ -20,13 +19,11 @@
 namespace weft {
 
 std::size_t BvhPairScratch::heldBytes() const {
-  const auto bytes = [](const auto& v) {
-    return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type);
-  };
-  std::size_t total = bytes(front_) + bytes(next_) + bytes(taskPairs_) + bytes(threadLevels_) + bytes(keys_) +
-                      bytes(keysSwap_) + bytes(histogram_);
-  for (const TaskPairs& t : taskPairs_) total += bytes(t.pairs);
-  for (const ThreadLevels& t : threadLevels_) total += bytes(t.leaves) + bytes(t.level[0]) + bytes(t.level[1]);
+  std::size_t total = vectorBytes(front_) + vectorBytes(next_) + vectorBytes(taskPairs_) + vectorBytes(threadLevels_) +
+                      vectorBytes(keys_) + vectorBytes(keysSwap_) + vectorBytes(histogram_);
+  for (const TaskPairs& t : taskPairs_) total += vectorBytes(t.pairs);
+  for (const ThreadLevels& t : threadLevels_)
+    total += vectorBytes(t.leaves) + vectorBytes(t.level[0]) + vectorBytes(t.level[1]);
   return total;
 }
 

@@ -7,7 +7,6 @@
 #include <limits>
 #include <span>
 #include <string>
-#include <type_traits>
 
 #include "collide/self_collider.hpp"
 #include "weft/collide/self_collision.hpp"
@@ -226,14 +225,12 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
 
 template <class S>
 std::size_t SelfCollider<S>::listBytes() const {
-  const auto bytes = [](const auto& v) {
-    return v.capacity() * sizeof(typename std::decay_t<decltype(v)>::value_type);
-  };
   // (shares_ is reserved to every block's contact capacity at once but holds, and
   // touches, only one pass's contacts: its size counts.)
-  std::size_t total =
-      bytes(pairs_) + bytes(pairHit_) + bytes(blocks_) + shares_.size() * sizeof(Share) + scratch_.heldBytes();
-  for (const Block& block : blocks_) total += bytes(block.primitives) + bytes(block.pairEnd) + bytes(block.contacts);
+  std::size_t total = vectorBytes(pairs_) + vectorBytes(pairHit_) + vectorBytes(blocks_) +
+                      shares_.size() * sizeof(Share) + scratch_.heldBytes();
+  for (const Block& block : blocks_)
+    total += vectorBytes(block.primitives) + vectorBytes(block.pairEnd) + vectorBytes(block.contacts);
   return total;
 }
 
