@@ -244,7 +244,7 @@ BENCHMARK(BM_Projective_Frame)
 
 // ---------------------------------------------------------------------------------------
 // BM_Implicit_Step: one implicit-Euler step of the flag (double) at dt = 1 / steps_per_s,
-// by CG preconditioner (0 jacobi, 1 block-jacobi, 2 projective) and thread count.
+// by CG preconditioner (0 jacobi, 1 block-jacobi, 2 projective, 3 multigrid) and thread count.
 // Counters: CG iterations per step, wall seconds per simulated second.
 // ---------------------------------------------------------------------------------------
 
@@ -281,7 +281,7 @@ void BM_Implicit_Step(benchmark::State& st) {
 }
 BENCHMARK(BM_Implicit_Step)
     ->ArgNames({"size", "steps_per_s", "preconditioner", "threads"})
-    ->ArgsProduct({{128}, {60, 600}, {0, 1, 2}, {1, 2}})
+    ->ArgsProduct({{128}, {60, 600}, {0, 1, 2, 3}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -4,7 +4,8 @@
 // BM_Peer_Bullet_Cloth (bench_peer_bullet_cloth.cpp, where Bullet is found), so the ratios
 // and the stretch figures come out of one run.
 //
-//   implicit Euler and projective dynamics (10 iterations): one step of 1/600 s a frame;
+//   implicit Euler (block-Jacobi and multigrid preconditioners) and projective dynamics
+//   (10 iterations): one step of 1/600 s a frame;
 //   symplectic Euler and RK4 (explicit, unstable at 1/600 s on this cloth): K equal steps of
 //   1/(600 K) s a frame, K the smallest count at which the whole span passes the stability
 //   check (probed once per method and precision, on 2 threads, from ceil(frame / the kernel's
@@ -24,9 +25,11 @@ using weftbench::kPatchFrame;
 using weftbench::kPatchSize;
 using weftbench::kSpanFrames;
 
-weft::SimulationOptions patchOptions(weft::IntegratorKind kind, int substeps, int threads) {
+weft::SimulationOptions patchOptions(weft::IntegratorKind kind, int substeps, int threads,
+                                     weft::Preconditioner preconditioner = weft::Preconditioner::BlockJacobi) {
   weft::SimulationOptions options;
   options.integrator = kind;
+  options.integration.preconditioner = preconditioner;
   options.threads = threads;
   options.dt = kPatchFrame / substeps;
   options.integration.adaptive = false;
@@ -55,11 +58,11 @@ int substepsPerFrame(weft::IntegratorKind kind) {
   return cache[static_cast<int>(kind)] = k;
 }
 
-template <class S, weft::IntegratorKind Kind>
+template <class S, weft::IntegratorKind Kind, weft::Preconditioner Preconditioner = weft::Preconditioner::BlockJacobi>
 void BM_Patch(benchmark::State& st) {
   const int threads = static_cast<int>(st.range(0));
   const int substeps = substepsPerFrame<S>(Kind);
-  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(Kind, substeps, threads));
+  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(Kind, substeps, threads, Preconditioner));
   // Warm up (projective dynamics factorises its matrix in its first step), then back to rest.
   const weft::State<S> rest = sim.state();
   sim.step();
@@ -104,6 +107,9 @@ WEFT_PATCH(BM_Patch_Symplectic_double, explicitArgs, double, IntegratorKind::Sym
 WEFT_PATCH(BM_Patch_Rk4_float, explicitArgs, float, IntegratorKind::Rk4);
 WEFT_PATCH(BM_Patch_Rk4_double, explicitArgs, double, IntegratorKind::Rk4);
 WEFT_PATCH(BM_Patch_Implicit_double, implicitArgs, double, IntegratorKind::ImplicitEuler);
+// Implicit Euler with the multigrid preconditioner (the one above uses the default, block-Jacobi).
+WEFT_BENCHMARK_AS(BM_Patch_ImplicitMultigrid_double, implicitArgs,
+                  BM_Patch<double, IntegratorKind::ImplicitEuler, weft::Preconditioner::Multigrid>);
 WEFT_PATCH(BM_Patch_Projective_double, implicitArgs, double, IntegratorKind::Projective);
 
 }  // namespace

@@ -208,7 +208,7 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
 TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
   // (StepAllocation covers the default, block-Jacobi, with a failing step too.)
   const ModelAndState<double> flag = makeFlag<double>(kFlagSize);
-  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Projective})
+  for (const Preconditioner p : kAllPreconditioners)
     for (const int threads : {1, 2}) {
       SCOPED_TRACE(::testing::Message() << preconditionerName(p) << ", " << threads << " thread(s)");
       SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads,

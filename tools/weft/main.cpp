@@ -255,8 +255,8 @@ int main(int argc, char** argv) {
   cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cg-preconditioner", run.preconditioner,
-                  "implicit: CG preconditioner: jacobi | block-jacobi | projective (default block-jacobi)")
-      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective"}));
+                  "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid (default block-jacobi)")
+      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid"}));
   cmd->add_option("--pd-iterations", run.projectiveIterations,
                   "projective: local/global iterations per step, one global solve each (1..10000; default 10)")
       ->check(CLI::Range(1, 10000));

@@ -33,6 +33,7 @@
 #include <memory>
 #include <vector>
 
+#include "aggregation_multigrid.hpp"
 #include "row_blocks.hpp"
 #include "spring_laplacian_solver.hpp"
 #include "weft/effects/spring_jacobian.hpp"
@@ -63,6 +64,7 @@ class ImplicitEuler final : public Integrator<S> {
     if (o.preconditioner == Preconditioner::Projective)
       laplacian_ = std::make_unique<SpringLaplacianSolver<S>>(model, kProjectiveTheta,
                                                               "implicit Euler: the preconditioner's matrix");
+    if (o.preconditioner == Preconditioner::Multigrid) multigrid_ = std::make_unique<AggregationMultigrid<S>>(model);
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
   void reset() override { warm_ = false; }
@@ -108,6 +110,7 @@ class ImplicitEuler final : public Integrator<S> {
     jacobian_.stiffnessProduct(v0, makeSink<S>(rhsStiffness), exec);
     if (laplacian_ && laplacian_->prepare(static_cast<double>(h), static_cast<double>(forces.effects().drag)))
       ++work.factorizations;
+    if (multigrid_) multigrid_->prepare(jacobian_, exec);
     const double bNorm = std::sqrt(sumPartials(partialA_));
 
     // r = b - A dv (warm start) or r = b (cold); then rz = r . M^-1 r and |r|^2.
@@ -127,7 +130,7 @@ class ImplicitEuler final : public Integrator<S> {
         reduceResidual(b, e - b);
       });
     }
-    if (laplacian_) laplacian_->apply(r_, z_, partialA_, kBlock, exec);
+    precondition(exec);
     double rz = sumPartials(partialA_);
     double rNorm = std::sqrt(sumPartials(partialB_));
     const double target = options_.linearTolerance * bNorm;
@@ -183,7 +186,7 @@ class ImplicitEuler final : public Integrator<S> {
         }
         reduceResidual(b, e - b);
       });
-      if (laplacian_) laplacian_->apply(r_, z_, partialA_, kBlock, exec);
+      precondition(exec);
       const double rzNew = sumPartials(partialA_);
       rNorm = std::sqrt(sumPartials(partialB_));
       beta = rzNew / rz;
@@ -262,6 +265,12 @@ class ImplicitEuler final : public Integrator<S> {
       inverseBlock_(i, 5) = static_cast<S>(f * cyz);
     }
   }
+  /// z = M^-1 r and partialA = r . z per block, for the preconditioners applied after the
+  /// pass that updates r (Jacobi and block-Jacobi work inside that pass).
+  void precondition(const Executor& exec) {
+    if (laplacian_) laplacian_->apply(r_, z_, partialA_, kBlock, exec);
+    if (multigrid_) multigrid_->apply(jacobian_, r_, z_, partialA_, kBlock, exec);
+  }
   static double sumPartials(const std::vector<double>& partials) {
     double sum = 0;
     for (const double p : partials) sum += p;  // block order: the same for any thread count
@@ -278,6 +287,7 @@ class ImplicitEuler final : public Integrator<S> {
   Vec3Array<S> inverseDiagonal_;                         // (n x 3) Jacobi preconditioner (0 on pinned particles)
   Eigen::Array<S, Eigen::Dynamic, 6> inverseBlock_;      // (n x 6) block-Jacobi: xx yy zz xy xz yz
   std::unique_ptr<SpringLaplacianSolver<S>> laplacian_;  // the projective preconditioner
+  std::unique_ptr<AggregationMultigrid<S>> multigrid_;   // the multigrid preconditioner
   std::vector<double> partialA_;                         // per block of kBlock particles
   std::vector<double> partialB_;
   bool warm_ = false;  // dv_ holds the previous step's solution

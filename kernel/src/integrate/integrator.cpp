@@ -67,14 +67,17 @@ const char* preconditionerName(Preconditioner p) {
       return "block-jacobi";
     case Preconditioner::Projective:
       return "projective";
+    case Preconditioner::Multigrid:
+      return "multigrid";
   }
   return "unknown";
 }
 
 Preconditioner parsePreconditioner(const std::string& name) {
-  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Projective})
+  for (const Preconditioner p : kAllPreconditioners)
     if (name == preconditionerName(p)) return p;
-  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective; got '" + name + "'");
+  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid; got '" + name +
+                              "'");
 }
 
 int integratorOrder(IntegratorKind kind) { return traits(kind).order; }
@@ -103,9 +106,9 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
   if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
   if (o.preconditioner != Preconditioner::Jacobi && o.preconditioner != Preconditioner::BlockJacobi &&
-      o.preconditioner != Preconditioner::Projective)
+      o.preconditioner != Preconditioner::Projective && o.preconditioner != Preconditioner::Multigrid)
     bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)),
-        "must be Jacobi, BlockJacobi or Projective");
+        "must be Jacobi, BlockJacobi, Projective or Multigrid");
   if (o.projectiveIterations < 1 || o.projectiveIterations > 10000)
     bad("projectiveIterations", std::to_string(o.projectiveIterations), "must be in 1..10000");
 }

@@ -67,6 +67,17 @@ class SpringJacobian {
   const Vec3Array<S>& offDiagonal() const { return offDiagonal_; }
   const Model<S>& model() const { return *model_; }
 
+  /// The linearisation per spring (indexed like Model::springs()): unit direction d,
+  /// alpha = h^2 ks c, beta = h^2 ks (1 - c), gamma = h kd (kg). Spring s couples its ends
+  /// through the symmetric positive semi-definite 3x3 block alpha I + (beta + gamma) d d^T
+  /// (a multigrid preconditioner sums these blocks into its coarse operators).
+  const Vec3Array<S>& directions() const { return direction_; }
+  const ScalarArray<S>& alpha() const { return alpha_; }
+  const ScalarArray<S>& beta() const { return beta_; }
+  const ScalarArray<S>& gamma() const { return gamma_; }
+  /// h c, kg: the drag's share of each particle's diagonal.
+  S dragTerm() const { return dragTerm_; }
+
  private:
   template <bool kSystem>
   void product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);

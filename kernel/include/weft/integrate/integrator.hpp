@@ -88,10 +88,15 @@ inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEul
 ///   Projective   one prefactored solve with the springs' scalar matrix
 ///                M + h c I + (h^2 ks + h kd) L (projective dynamics' global matrix),
 ///                factorised once per h (the factorisation allocates; cached for two h)
+///   Multigrid    one aggregation multigrid V-cycle: the springs' blocks summed over 2 x 2
+///                blocks of a grid (pairs of pairs on other models) level by level down
+///                to at most 32 nodes, solved there exactly; block-Jacobi smoothing
 /// BlockJacobi is the default: the fastest measured on the 128^2 flag (docs/integrators.md,
-/// implicit Euler, has the iterations and times of all three).
-enum class Preconditioner { Jacobi, BlockJacobi, Projective };
-/// Names on the command line and in scene files: jacobi, block-jacobi, projective.
+/// implicit Euler, has the iterations and times of all four).
+enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid };
+inline constexpr Preconditioner kAllPreconditioners[] = {Preconditioner::Jacobi, Preconditioner::BlockJacobi,
+                                                         Preconditioner::Projective, Preconditioner::Multigrid};
+/// Names on the command line and in scene files: jacobi, block-jacobi, projective, multigrid.
 const char* preconditionerName(Preconditioner p);
 /// Parses a name; throws std::invalid_argument naming the value otherwise.
 Preconditioner parsePreconditioner(const std::string& name);

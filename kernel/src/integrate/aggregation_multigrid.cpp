@@ -1,0 +1,605 @@
+#include "aggregation_multigrid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+namespace weft::detail {
+
+namespace {
+
+// Pairwise matching (Notay 2010, without the strength threshold): in index order, each
+// unmatched active node is paired with the unmatched active neighbour it is most strongly
+// coupled to (the sum of the links between them; ties to the lower index), or left alone.
+// Returns the pair of each node (-1: inactive) and the number of pairs.
+template <class Link>
+Index matchPairs(Index n, const std::vector<char>& active, const std::vector<Link>& links, std::vector<Index>& pairOf) {
+  std::vector<Index> offset(static_cast<size_t>(n) + 1, 0);
+  for (const Link& l : links)
+    if (l.u != l.v && active[static_cast<size_t>(l.u)] && active[static_cast<size_t>(l.v)]) {
+      ++offset[static_cast<size_t>(l.u) + 1];
+      ++offset[static_cast<size_t>(l.v) + 1];
+    }
+  for (Index i = 0; i < n; ++i) offset[static_cast<size_t>(i) + 1] += offset[static_cast<size_t>(i)];
+  std::vector<Index> neighbour(static_cast<size_t>(offset.back()));
+  std::vector<double> strength(neighbour.size());
+  std::vector<Index> fill(offset.begin(), offset.end() - 1);
+  for (const Link& l : links)
+    if (l.u != l.v && active[static_cast<size_t>(l.u)] && active[static_cast<size_t>(l.v)]) {
+      const auto pu = static_cast<size_t>(fill[static_cast<size_t>(l.u)]++);
+      const auto pv = static_cast<size_t>(fill[static_cast<size_t>(l.v)]++);
+      neighbour[pu] = l.v;
+      strength[pu] = l.strength;
+      neighbour[pv] = l.u;
+      strength[pv] = l.strength;
+    }
+  pairOf.assign(static_cast<size_t>(n), -1);
+  Index pairs = 0;
+  for (Index i = 0; i < n; ++i) {
+    if (!active[static_cast<size_t>(i)] || pairOf[static_cast<size_t>(i)] >= 0) continue;
+    Index best = -1;
+    double bestStrength = 0;
+    for (Index p = offset[static_cast<size_t>(i)]; p < offset[static_cast<size_t>(i) + 1]; ++p) {
+      const Index j = neighbour[static_cast<size_t>(p)];
+      if (pairOf[static_cast<size_t>(j)] >= 0) continue;
+      double total = 0;
+      for (Index q = offset[static_cast<size_t>(i)]; q < offset[static_cast<size_t>(i) + 1]; ++q)
+        if (neighbour[static_cast<size_t>(q)] == j) total += strength[static_cast<size_t>(q)];
+      if (total > bestStrength || (total == bestStrength && best >= 0 && j < best)) {
+        best = j;
+        bestStrength = total;
+      }
+    }
+    pairOf[static_cast<size_t>(i)] = pairs;
+    if (best >= 0) pairOf[static_cast<size_t>(best)] = pairs;
+    ++pairs;
+  }
+  return pairs;
+}
+
+// y = B x for a symmetric block.
+template <class Block>
+inline void multiply(const Block& m, const double* x, double* y) {
+  y[0] = m.xx * x[0] + m.xy * x[1] + m.xz * x[2];
+  y[1] = m.xy * x[0] + m.yy * x[1] + m.yz * x[2];
+  y[2] = m.xz * x[0] + m.yz * x[1] + m.zz * x[2];
+}
+
+template <class Block>
+inline void add(Block& to, const Block& b) {
+  to.xx += b.xx;
+  to.yy += b.yy;
+  to.zz += b.zz;
+  to.xy += b.xy;
+  to.xz += b.xz;
+  to.yz += b.yz;
+}
+
+// The inverse of a symmetric positive definite block by cofactors (zero if not definite).
+template <class Block>
+Block invert(const Block& m) {
+  const double cxx = m.yy * m.zz - m.yz * m.yz, cyy = m.xx * m.zz - m.xz * m.xz, czz = m.xx * m.yy - m.xy * m.xy;
+  const double cxy = m.xz * m.yz - m.xy * m.zz, cxz = m.xy * m.yz - m.xz * m.yy, cyz = m.xy * m.xz - m.xx * m.yz;
+  const double det = m.xx * cxx + m.xy * cxy + m.xz * cxz;
+  const double f = det > 0 && std::isfinite(det) ? 1.0 / det : 0.0;
+  return {f * cxx, f * cyy, f * czz, f * cxy, f * cxz, f * cyz};
+}
+
+}  // namespace
+
+template <class S>
+AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
+    : model_(&model),
+      n_(model.particleCount()),
+      free_(static_cast<size_t>(model.particleCount())),
+      fineInverse_(model.particleCount(), 6),
+      x_(model.particleCount(), 3),
+      t_(model.particleCount(), 3) {
+  fineInverse_.setZero();
+  x_.setZero();
+  t_.setZero();
+  for (Index i = 0; i < n_; ++i) free_[static_cast<size_t>(i)] = model.isPinned(i) ? 0 : 1;
+  const Springs<S>& sp = model.springs();
+  std::vector<Link> links(static_cast<size_t>(sp.count()));
+  for (Index s = 0; s < sp.count(); ++s)
+    links[static_cast<size_t>(s)] = {sp.a[s], sp.b[s], static_cast<double>(sp.stiffness[s])};
+  Index gridWidth = 0;
+  std::vector<Index> row, column;
+  if (const auto& grid = model.grid(); grid && grid->width > 0 && grid->width * grid->height == n_) {
+    gridWidth = grid->width;
+    row.resize(static_cast<size_t>(n_));
+    column.resize(static_cast<size_t>(n_));
+    for (Index i = 0; i < n_; ++i) {
+      row[static_cast<size_t>(i)] = i / gridWidth;
+      column[static_cast<size_t>(i)] = i % gridWidth;
+    }
+  }
+  Index n = n_;
+  std::vector<char> free = free_;
+  for (;;) {
+    std::vector<Link> coarseLinks;
+    Level level = buildLevel(n, free, links, gridWidth, row, column);
+    if (level.n == 0) break;
+    // Coarse edges link this level to the next; their strengths are the summed springs'.
+    coarseLinks.reserve(level.edgeU.size());
+    for (size_t e = 0; e < level.edgeU.size(); ++e) {
+      double strength = 0;
+      for (Index p = level.linkOffset[e]; p < level.linkOffset[e + 1]; ++p)
+        strength += links[static_cast<size_t>(level.links[static_cast<size_t>(p)])].strength;
+      coarseLinks.push_back({level.edgeU[e], level.edgeV[e], strength});
+    }
+    const Index coarse = level.n;
+    levels_.push_back(std::move(level));
+    if (coarse <= kCoarsestNodes || 5 * coarse > 4 * n || levels_.size() >= 24) break;
+    n = coarse;
+    free.assign(static_cast<size_t>(n), 1);
+    links = std::move(coarseLinks);
+    gridWidth = levels_.back().gridWidth;
+    row = levels_.back().row;
+    column = levels_.back().column;
+  }
+  for (Level& l : levels_) {
+    const auto nodes = static_cast<size_t>(l.n);
+    l.ground.assign(nodes, Block{});
+    l.diagonal.assign(nodes, Block{});
+    l.inverse.assign(nodes, Block{});
+    l.edge.assign(l.edgeU.size(), Block{});
+    l.b.assign(3 * nodes, 0.0);
+    l.x.assign(3 * nodes, 0.0);
+    l.t.assign(3 * nodes, 0.0);
+    l.saved.assign(3 * nodes, 0.0);
+    l.g.assign(3 * l.edgeU.size(), 0.0);
+  }
+  if (!levels_.empty() && levels_.back().n <= kDenseNodes) {
+    denseCoarsest_ = true;
+    const auto m = static_cast<size_t>(3 * levels_.back().n);
+    dense_.assign(m * m + m, 0.0);  // the factor, then 1 / its diagonal
+  }
+}
+
+template <class S>
+typename AggregationMultigrid<S>::Level AggregationMultigrid<S>::buildLevel(Index n, const std::vector<char>& free,
+                                                                            const std::vector<Link>& links,
+                                                                            Index gridWidth,
+                                                                            const std::vector<Index>& row,
+                                                                            const std::vector<Index>& column) const {
+  Level level;
+  level.aggregateOf.assign(static_cast<size_t>(n), -1);
+  if (gridWidth > 0) {  // 2 x 2 blocks of the grid, numbered in order of their first node
+    const Index width = (gridWidth + 1) / 2;
+    Index rows = 0;
+    for (Index i = 0; i < n; ++i) rows = std::max(rows, row[static_cast<size_t>(i)] / 2 + 1);
+    std::vector<Index> nodeOfBlock(static_cast<size_t>(rows * width), -1);
+    for (Index i = 0; i < n; ++i) {
+      if (!free[static_cast<size_t>(i)]) continue;
+      const Index r = row[static_cast<size_t>(i)] / 2, c = column[static_cast<size_t>(i)] / 2;
+      Index& node = nodeOfBlock[static_cast<size_t>(r * width + c)];
+      if (node < 0) {
+        node = level.n++;
+        level.row.push_back(r);
+        level.column.push_back(c);
+      }
+      level.aggregateOf[static_cast<size_t>(i)] = node;
+    }
+    level.gridWidth = width;
+  } else {  // two rounds of pairwise matching
+    std::vector<Index> first, second;
+    const Index pairs = matchPairs(n, free, links, first);
+    std::vector<Link> pairLinks;
+    pairLinks.reserve(links.size());
+    for (const Link& l : links) {
+      if (!free[static_cast<size_t>(l.u)] || !free[static_cast<size_t>(l.v)]) continue;
+      const Index a = first[static_cast<size_t>(l.u)], b = first[static_cast<size_t>(l.v)];
+      if (a != b) pairLinks.push_back({a, b, l.strength});
+    }
+    matchPairs(pairs, std::vector<char>(static_cast<size_t>(pairs), 1), pairLinks, second);
+    // Number the groups in order of their first node.
+    std::vector<Index> nodeOfGroup(static_cast<size_t>(pairs), -1);
+    for (Index i = 0; i < n; ++i) {
+      if (!free[static_cast<size_t>(i)]) continue;
+      Index& node = nodeOfGroup[static_cast<size_t>(second[static_cast<size_t>(first[static_cast<size_t>(i)])])];
+      if (node < 0) node = level.n++;
+      level.aggregateOf[static_cast<size_t>(i)] = node;
+    }
+  }
+  // Members, in index order.
+  level.memberOffset.assign(static_cast<size_t>(level.n) + 1, 0);
+  for (Index i = 0; i < n; ++i)
+    if (const Index a = level.aggregateOf[static_cast<size_t>(i)]; a >= 0)
+      ++level.memberOffset[static_cast<size_t>(a) + 1];
+  for (Index a = 0; a < level.n; ++a)
+    level.memberOffset[static_cast<size_t>(a) + 1] += level.memberOffset[static_cast<size_t>(a)];
+  level.members.resize(static_cast<size_t>(level.memberOffset.back()));
+  {
+    std::vector<Index> fill(level.memberOffset.begin(), level.memberOffset.end() - 1);
+    for (Index i = 0; i < n; ++i)
+      if (const Index a = level.aggregateOf[static_cast<size_t>(i)]; a >= 0)
+        level.members[static_cast<size_t>(fill[static_cast<size_t>(a)]++)] = i;
+  }
+  // Links between groups become edges (several links may share one); links with one end
+  // pinned ground the other end's group; links inside a group drop out.
+  std::vector<std::tuple<Index, Index, Index>> between;
+  std::vector<std::pair<Index, Index>> grounding;
+  for (size_t k = 0; k < links.size(); ++k) {
+    const Link& l = links[k];
+    const bool fu = free[static_cast<size_t>(l.u)] != 0, fv = free[static_cast<size_t>(l.v)] != 0;
+    if (fu && fv) {
+      const Index a = level.aggregateOf[static_cast<size_t>(l.u)], b = level.aggregateOf[static_cast<size_t>(l.v)];
+      if (a != b) between.emplace_back(std::min(a, b), std::max(a, b), static_cast<Index>(k));
+    } else if (fu || fv) {
+      grounding.emplace_back(level.aggregateOf[static_cast<size_t>(fu ? l.u : l.v)], static_cast<Index>(k));
+    }
+  }
+  std::sort(between.begin(), between.end());
+  level.linkOffset.push_back(0);
+  for (size_t p = 0; p < between.size(); ++p) {
+    const auto [a, b, k] = between[p];
+    if (p == 0 || std::get<0>(between[p - 1]) != a || std::get<1>(between[p - 1]) != b) {
+      if (p > 0) level.linkOffset.push_back(static_cast<Index>(p));
+      level.edgeU.push_back(a);
+      level.edgeV.push_back(b);
+    }
+    level.links.push_back(k);
+  }
+  if (!between.empty()) level.linkOffset.push_back(static_cast<Index>(between.size()));
+  std::sort(grounding.begin(), grounding.end());
+  level.groundOffset.assign(static_cast<size_t>(level.n) + 1, 0);
+  for (const auto& [a, k] : grounding) ++level.groundOffset[static_cast<size_t>(a) + 1];
+  for (Index a = 0; a < level.n; ++a)
+    level.groundOffset[static_cast<size_t>(a) + 1] += level.groundOffset[static_cast<size_t>(a)];
+  for (const auto& g : grounding) level.groundLinks.push_back(g.second);
+  // Each node's edges, in edge order.
+  level.incidenceOffset.assign(static_cast<size_t>(level.n) + 1, 0);
+  for (size_t e = 0; e < level.edgeU.size(); ++e) {
+    ++level.incidenceOffset[static_cast<size_t>(level.edgeU[e]) + 1];
+    ++level.incidenceOffset[static_cast<size_t>(level.edgeV[e]) + 1];
+  }
+  for (Index a = 0; a < level.n; ++a)
+    level.incidenceOffset[static_cast<size_t>(a) + 1] += level.incidenceOffset[static_cast<size_t>(a)];
+  level.incident.resize(static_cast<size_t>(level.incidenceOffset.back()));
+  {
+    std::vector<Index> fill(level.incidenceOffset.begin(), level.incidenceOffset.end() - 1);
+    for (size_t e = 0; e < level.edgeU.size(); ++e) {
+      level.incident[static_cast<size_t>(fill[static_cast<size_t>(level.edgeU[e])]++)] = static_cast<Index>(e);
+      level.incident[static_cast<size_t>(fill[static_cast<size_t>(level.edgeV[e])]++)] = ~static_cast<Index>(e);
+    }
+  }
+  return level;
+}
+
+template <class S>
+std::vector<Index> AggregationMultigrid<S>::coarseSizes() const {
+  std::vector<Index> sizes;
+  for (const Level& l : levels_) sizes.push_back(l.n);
+  return sizes;
+}
+
+template <class S>
+void AggregationMultigrid<S>::prepare(const SpringJacobian<S>& jacobian, const Executor& exec) {
+  constexpr Index kBlock = ForceField<S>::kSinkBlock;
+  const Vec3Array<S>& d = jacobian.diagonal();
+  const Vec3Array<S>& o = jacobian.offDiagonal();
+  exec.parallelFor(n_, kBlock, [&](Index b, Index e) {
+    for (Index i = b; i < e; ++i) {
+      const Block inv =
+          free_[static_cast<size_t>(i)]
+              ? invert(Block{static_cast<double>(d(i, 0)), static_cast<double>(d(i, 1)), static_cast<double>(d(i, 2)),
+                             static_cast<double>(o(i, 0)), static_cast<double>(o(i, 1)), static_cast<double>(o(i, 2))})
+              : Block{};
+      fineInverse_(i, 0) = inv.xx;
+      fineInverse_(i, 1) = inv.yy;
+      fineInverse_(i, 2) = inv.zz;
+      fineInverse_(i, 3) = inv.xy;
+      fineInverse_(i, 4) = inv.xz;
+      fineInverse_(i, 5) = inv.yz;
+    }
+  });
+  for (size_t k = 0; k < levels_.size(); ++k)
+    assemble(levels_[k], k == 0 ? nullptr : &levels_[k - 1], k == 0 ? &jacobian : nullptr, exec);
+  if (denseCoarsest_) factorCoarsest();
+}
+
+template <class S>
+void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const SpringJacobian<S>* jacobian,
+                                       const Executor& exec) {
+  // The finer level's link k as a block: a spring's linearisation, or a coarse edge.
+  const S* dx = jacobian ? jacobian->directions().data() : nullptr;
+  const Index springs = jacobian ? jacobian->directions().rows() : 0;
+  auto link = [&](Index k) -> Block {
+    if (finer) return finer->edge[static_cast<size_t>(k)];
+    const double x = dx[k], y = dx[springs + k], z = dx[2 * springs + k];
+    const double a = jacobian->alpha()[k], w = jacobian->beta()[k] + jacobian->gamma()[k];
+    return {a + w * x * x, a + w * y * y, a + w * z * z, w * x * y, w * x * z, w * y * z};
+  };
+  const auto edges = static_cast<Index>(level.edgeU.size());
+  const Index edgeGrain = edges > 2 * kParallelNodes ? 1024 : std::max<Index>(edges, 1);
+  exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
+    for (Index k = b; k < e; ++k) {
+      Block sum;
+      for (Index p = level.linkOffset[static_cast<size_t>(k)]; p < level.linkOffset[static_cast<size_t>(k) + 1]; ++p)
+        add(sum, link(level.links[static_cast<size_t>(p)]));
+      level.edge[static_cast<size_t>(k)] = sum;
+    }
+  });
+  const ScalarArray<S>& mass = model_->mass();
+  const double drag = jacobian ? static_cast<double>(jacobian->dragTerm()) : 0.0;
+  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+    for (Index a = b; a < e; ++a) {
+      const auto ua = static_cast<size_t>(a);
+      Block g;
+      for (Index p = level.memberOffset[ua]; p < level.memberOffset[ua + 1]; ++p) {
+        const Index i = level.members[static_cast<size_t>(p)];
+        if (finer) {
+          add(g, finer->ground[static_cast<size_t>(i)]);
+        } else {
+          const double m = static_cast<double>(mass[i]) + drag;
+          g.xx += m;
+          g.yy += m;
+          g.zz += m;
+        }
+      }
+      for (Index p = level.groundOffset[ua]; p < level.groundOffset[ua + 1]; ++p)
+        add(g, link(level.groundLinks[static_cast<size_t>(p)]));
+      level.ground[ua] = g;
+      Block diagonal = g;
+      for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
+        const Index code = level.incident[static_cast<size_t>(p)];
+        add(diagonal, level.edge[static_cast<size_t>(code >= 0 ? code : ~code)]);
+      }
+      level.diagonal[ua] = diagonal;
+      level.inverse[ua] = invert(diagonal);
+    }
+  });
+}
+
+template <class S>
+void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x, std::vector<double>& y,
+                                      const std::vector<double>* minus, const Executor& exec) {
+  // g_e = B_e (x_u - x_v) once per edge; then y_a = G_a x_a + sum of +-g over a's edges
+  // (+ on the edge's u side), or minus_a - that.
+  const auto edges = static_cast<Index>(level.edgeU.size());
+  const Index edgeGrain = edges > 2 * kParallelNodes ? 1024 : std::max<Index>(edges, 1);
+  exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
+    for (Index k = b; k < e; ++k) {
+      const double* xu = x.data() + 3 * level.edgeU[static_cast<size_t>(k)];
+      const double* xv = x.data() + 3 * level.edgeV[static_cast<size_t>(k)];
+      const double u[3] = {xu[0] - xv[0], xu[1] - xv[1], xu[2] - xv[2]};
+      multiply(level.edge[static_cast<size_t>(k)], u, level.g.data() + 3 * k);
+    }
+  });
+  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+    for (Index a = b; a < e; ++a) {
+      const auto ua = static_cast<size_t>(a);
+      double out[3];
+      multiply(level.ground[ua], x.data() + 3 * a, out);
+      for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
+        const Index code = level.incident[static_cast<size_t>(p)];
+        const double* g = level.g.data() + 3 * (code >= 0 ? code : ~code);
+        const double sign = code >= 0 ? 1.0 : -1.0;
+        out[0] += sign * g[0];
+        out[1] += sign * g[1];
+        out[2] += sign * g[2];
+      }
+      for (int c = 0; c < 3; ++c)
+        y[static_cast<size_t>(3 * a + c)] = minus ? (*minus)[static_cast<size_t>(3 * a + c)] - out[c] : out[c];
+    }
+  });
+}
+
+template <class S>
+void AggregationMultigrid<S>::factorCoarsest() {
+  const Level& level = levels_.back();
+  const Index m = 3 * level.n;
+  double* L = dense_.data();
+  double* inversePivot = L + m * m;
+  std::fill(L, L + m * m, 0.0);
+  auto at = [&](Index r, Index c) -> double& { return L[r * m + c]; };  // lower triangle used
+  for (Index a = 0; a < level.n; ++a) {
+    const Block& d = level.diagonal[static_cast<size_t>(a)];
+    const double block[3][3] = {{d.xx, d.xy, d.xz}, {d.xy, d.yy, d.yz}, {d.xz, d.yz, d.zz}};
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c <= r; ++c) at(3 * a + r, 3 * a + c) = block[r][c];
+  }
+  for (size_t e = 0; e < level.edgeU.size(); ++e) {
+    const Block& k = level.edge[e];
+    const double block[3][3] = {{k.xx, k.xy, k.xz}, {k.xy, k.yy, k.yz}, {k.xz, k.yz, k.zz}};
+    const Index u = level.edgeU[e], v = level.edgeV[e];  // u < v: the block sits in row v
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) at(3 * v + r, 3 * u + c) = -block[r][c];
+  }
+  // Cholesky, row by row; a pivot that is not positive drops its unknown (solved as 0).
+  for (Index j = 0; j < m; ++j) {
+    for (Index k = 0; k < j; ++k) {
+      double s = at(j, k);
+      for (Index p = 0; p < k; ++p) s -= at(j, p) * at(k, p);
+      at(j, k) = s * inversePivot[k];
+    }
+    double s = at(j, j);
+    for (Index p = 0; p < j; ++p) s -= at(j, p) * at(j, p);
+    const double pivot = s > 0 && std::isfinite(s) ? std::sqrt(s) : 0.0;
+    at(j, j) = pivot;
+    inversePivot[j] = pivot > 0 ? 1.0 / pivot : 0.0;
+  }
+}
+
+template <class S>
+void AggregationMultigrid<S>::solveCoarsest() {
+  Level& level = levels_.back();
+  const Index m = 3 * level.n;
+  const double* L = dense_.data();
+  const double* inversePivot = L + m * m;
+  double* x = level.x.data();
+  for (Index j = 0; j < m; ++j) {  // L y = b
+    double s = level.b[static_cast<size_t>(j)];
+    for (Index p = 0; p < j; ++p) s -= L[j * m + p] * x[p];
+    x[j] = s * inversePivot[j];
+  }
+  for (Index j = m - 1; j >= 0; --j) {  // L^T x = y
+    double s = x[j];
+    for (Index p = j + 1; p < m; ++p) s -= L[p * m + j] * x[p];
+    x[j] = s * inversePivot[j];
+  }
+}
+
+template <class S>
+void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
+  Level& level = levels_[k];
+  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  // x = w D^-1 (b - A x) + x over [b, e), from the residual in t.
+  auto smooth = [&](bool fromZero) {
+    exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+      for (Index a = b; a < e; ++a) {
+        double dz[3];
+        multiply(level.inverse[static_cast<size_t>(a)], (fromZero ? level.b : level.t).data() + 3 * a, dz);
+        for (int c = 0; c < 3; ++c)
+          level.x[static_cast<size_t>(3 * a + c)] =
+              (fromZero ? 0.0 : level.x[static_cast<size_t>(3 * a + c)]) + kSmoothing * dz[c];
+      }
+    });
+  };
+  auto residual = [&] { product(level, level.x, level.t, &level.b, exec); };
+  if (k + 1 == levels_.size()) {
+    if (denseCoarsest_) {
+      solveCoarsest();
+    } else {  // a level that would not coarsen further: a fixed number of sweeps (symmetric)
+      smooth(true);
+      for (int sweep = 0; sweep < 4; ++sweep) {
+        residual();
+        smooth(false);
+      }
+    }
+    return;
+  }
+  smooth(true);
+  for (int sweep = 1; sweep < kCoarseSweeps; ++sweep) {
+    residual();
+    smooth(false);
+  }
+  residual();
+  Level& coarse = levels_[k + 1];
+  const Index coarseGrain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+  exec.parallelFor(coarse.n, coarseGrain, [&](Index b, Index e) {
+    for (Index a = b; a < e; ++a) {
+      double sum[3] = {0, 0, 0};
+      for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
+           ++p) {
+        const Index i = coarse.members[static_cast<size_t>(p)];
+        for (int c = 0; c < 3; ++c) sum[c] += level.t[static_cast<size_t>(3 * i + c)];
+      }
+      for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
+    }
+  });
+  cycle(k + 1, exec);
+  const bool exactBelow = k + 2 == levels_.size() && denseCoarsest_;
+  for (int again = 1; again < kCycles && !exactBelow; ++again) {
+    // Another pass on the coarse level for its remaining residual (a W-cycle for 2).
+    const Index cg = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+    product(coarse, coarse.x, coarse.t, &coarse.b, exec);
+    exec.parallelFor(coarse.n, cg, [&](Index b, Index e) {
+      for (Index i = 3 * b; i < 3 * e; ++i) {
+        coarse.saved[static_cast<size_t>(i)] = coarse.x[static_cast<size_t>(i)];
+        coarse.b[static_cast<size_t>(i)] = coarse.t[static_cast<size_t>(i)];
+      }
+    });
+    cycle(k + 1, exec);
+    exec.parallelFor(coarse.n, cg, [&](Index b, Index e) {
+      for (Index i = 3 * b; i < 3 * e; ++i) coarse.x[static_cast<size_t>(i)] += coarse.saved[static_cast<size_t>(i)];
+    });
+  }
+  exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+    for (Index i = b; i < e; ++i) {
+      const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
+      for (int c = 0; c < 3; ++c)
+        level.x[static_cast<size_t>(3 * i + c)] += kOverCorrection * coarse.x[static_cast<size_t>(3 * a + c)];
+    }
+  });
+  for (int sweep = 0; sweep < kCoarseSweeps; ++sweep) {
+    residual();
+    smooth(false);
+  }
+}
+
+template <class S>
+void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z,
+                                    std::vector<double>& partials, Index block, const Executor& exec) {
+  const Eigen::Array<double, Eigen::Dynamic, 6>& inv = fineInverse_;
+  auto smoothed = [&](Index i, const double* t, double* out) {
+    out[0] = kSmoothing * (inv(i, 0) * t[0] + inv(i, 3) * t[1] + inv(i, 4) * t[2]);
+    out[1] = kSmoothing * (inv(i, 3) * t[0] + inv(i, 1) * t[1] + inv(i, 5) * t[2]);
+    out[2] = kSmoothing * (inv(i, 4) * t[0] + inv(i, 5) * t[1] + inv(i, 2) * t[2]);
+  };
+  // Pre-smoothing from zero: x = w D^-1 r.
+  exec.parallelFor(n_, block, [&](Index b, Index e) {
+    for (Index i = b; i < e; ++i) {
+      const double t[3] = {static_cast<double>(r(i, 0)), static_cast<double>(r(i, 1)), static_cast<double>(r(i, 2))};
+      double dz[3];
+      smoothed(i, t, dz);
+      for (int c = 0; c < 3; ++c) x_(i, c) = static_cast<S>(dz[c]);
+    }
+  });
+  if (!levels_.empty()) {
+    // t = r - A x (filtered), restricted to the first coarse level.
+    auto residual = [&](Index b, Index m, const S* ax, const S* ay, const S* az) {
+      const S* y[3] = {ax, ay, az};
+      for (Index t = 0; t < m; ++t) {
+        const Index i = b + t;
+        const bool isFree = free_[static_cast<size_t>(i)] != 0;
+        for (int c = 0; c < 3; ++c) t_(i, c) = isFree ? r(i, c) - y[c][t] : S(0);
+      }
+    };
+    jacobian.systemProduct(x_, makeSink<S>(residual), exec);
+    Level& coarse = levels_.front();
+    const Index coarseGrain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+    exec.parallelFor(coarse.n, coarseGrain, [&](Index b, Index e) {
+      for (Index a = b; a < e; ++a) {
+        double sum[3] = {0, 0, 0};
+        for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
+             ++p) {
+          const Index i = coarse.members[static_cast<size_t>(p)];
+          for (int c = 0; c < 3; ++c) sum[c] += static_cast<double>(t_(i, c));
+        }
+        for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
+      }
+    });
+    cycle(0, exec);
+    exec.parallelFor(n_, block, [&](Index b, Index e) {
+      for (Index i = b; i < e; ++i) {
+        const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
+        if (a < 0) continue;
+        for (int c = 0; c < 3; ++c)
+          x_(i, c) = static_cast<S>(static_cast<double>(x_(i, c)) +
+                                    kOverCorrection * coarse.x[static_cast<size_t>(3 * a + c)]);
+      }
+    });
+  }
+  // Post-smoothing: z = x + w D^-1 (r - A x), and r . z per block.
+  auto post = [&](Index b, Index m, const S* ax, const S* ay, const S* az) {
+    const S* y[3] = {ax, ay, az};
+    double rz = 0;
+    for (Index t = 0; t < m; ++t) {
+      const Index i = b + t;
+      if (!free_[static_cast<size_t>(i)]) {
+        for (int c = 0; c < 3; ++c) z(i, c) = S(0);
+        continue;
+      }
+      const double res[3] = {static_cast<double>(r(i, 0) - y[0][t]), static_cast<double>(r(i, 1) - y[1][t]),
+                             static_cast<double>(r(i, 2) - y[2][t])};
+      double dz[3];
+      smoothed(i, res, dz);
+      for (int c = 0; c < 3; ++c) {
+        const S zi = static_cast<S>(static_cast<double>(x_(i, c)) + dz[c]);
+        z(i, c) = zi;
+        rz += static_cast<double>(r(i, c)) * static_cast<double>(zi);
+      }
+    }
+    partials[static_cast<size_t>(b / block)] = rz;
+  };
+  jacobian.systemProduct(x_, makeSink<S>(post), exec);
+}
+
+template class AggregationMultigrid<float>;
+template class AggregationMultigrid<double>;
+
+}  // namespace weft::detail

@@ -1,0 +1,126 @@
+// Internal: an aggregation multigrid cycle, implicit Euler's CG preconditioner
+// Preconditioner::Multigrid.
+//
+// The system matrix of a linearised implicit Euler step is a block spring network:
+//
+//     A = sum_i (m_i + h c) I e_i e_i^T + sum_s (e_a - e_b)(e_a - e_b)^T (x) B_s,
+//     B_s = alpha_s I + (beta_s + gamma_s) d_s d_s^T          (SpringJacobian)
+//
+// with every B_s symmetric positive semi-definite. Aggregating particles into groups and
+// taking A_c = P^T A P with P piecewise constant (each particle moves with its group) gives
+// a matrix of the same form on the groups: a group's mass is its members' mass, a spring
+// inside a group drops out, and the springs between two groups add up to one coarse block.
+// So every coarse operator is exact (Galerkin) and costs one addition per fine spring to
+// build, every step, with no sparse matrix product. Springs to pinned particles (which the
+// CG's filter keeps at dv = 0) become a "ground" block on their free end's group.
+//
+// Groups: on a grid model (Model::grid()) 2 x 2 blocks of the grid on every level; on any
+// other model two rounds of pairwise matching by spring stiffness (Notay's pairwise
+// aggregation) per level, about four particles a group. Levels are added until at most
+// kCoarsestNodes groups remain; the coarsest is solved exactly by a dense Cholesky
+// factorisation (per step; at most 3 kDenseNodes unknowns). The pattern is built once,
+// at construction; prepare() and apply() allocate nothing.
+//
+// The cycle: one damped block-Jacobi sweep (weight kSmoothing; the inverse of each node's
+// 3x3 diagonal block) before and after the coarse correction on every level, the coarse
+// correction scaled by kOverCorrection (piecewise-constant interpolation underestimates
+// the coarse error's energy; scaling it is the usual remedy for plain aggregation, Vanek
+// et al.), and each coarser level visited twice (a W-cycle: plain aggregation's V-cycle
+// loses accuracy with every level, 19, 25, 36, 51 CG iterations from 32^2 to 256^2; the
+// W-cycle 19, 24, 29 at 64^2 ... 256^2). Pre- and post-smoothing are the same symmetric
+// sweep and each level's second pass is a stationary step with a symmetric operator, so
+// the cycle is a symmetric positive definite operator, as CG needs. On the fine level a
+// sweep costs one product with A (SpringJacobian::systemProduct; the first sweep starts
+// from zero and needs none), so a cycle costs two fine products plus the coarse levels.
+//
+// Every pass is a parallel pass over blocks of nodes that gathers in a fixed order (a
+// node's members, an edge's springs, a node's edges), and levels below kParallelNodes run
+// on the calling thread: the result is bitwise the same for any thread count. Coarse
+// levels are kept in double for both precisions.
+#pragma once
+
+#include <vector>
+
+#include "weft/effects/spring_jacobian.hpp"
+
+namespace weft::detail {
+
+template <class S>
+class AggregationMultigrid {
+ public:
+  /// Builds the hierarchy's pattern (allocates). `model` must outlive the preconditioner.
+  explicit AggregationMultigrid(const Model<S>& model);
+
+  /// After jacobian.linearize(): every coarse operator, the smoothers' block inverses and
+  /// the coarsest factor. Allocates nothing.
+  void prepare(const SpringJacobian<S>& jacobian, const Executor& exec);
+
+  /// z = one V-cycle applied to r (r zero on pinned particles; z is zero there too), and
+  /// partials[k] = r . z over block k of `block` particles (block = ForceField::kSinkBlock).
+  void apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials,
+             Index block, const Executor& exec);
+
+  /// Levels including the fine one (1: no particle is free).
+  int levelCount() const { return static_cast<int>(levels_.size()) + 1; }
+  /// Nodes on each coarse level, finest first.
+  std::vector<Index> coarseSizes() const;
+
+  // Measured on the 128^2 flag at 1/60 s (docs/integrators.md): weights 0.67 ... 1.0 and
+  // over-corrections 1.0 ... 1.5 are within 10 % of each other in CG iterations; a W-cycle
+  // takes a third fewer than a V-cycle (25 against 36) and is cheaper per step; more coarse
+  // sweeps save iterations but not time.
+  static constexpr double kSmoothing = 0.8;       // block-Jacobi weight (A's D^-1 A has spectrum in (0, 2])
+  static constexpr double kOverCorrection = 1.3;  // scale of the coarse correction
+  static constexpr int kCycles = 2;               // passes on each coarser level: 2 = W-cycle
+  static constexpr int kCoarseSweeps = 1;         // smoothing sweeps before and after, coarse levels
+  static constexpr Index kCoarsestNodes = 32;     // stop coarsening at or below this many nodes
+  static constexpr Index kDenseNodes = 64;        // largest coarsest level solved by dense Cholesky
+  static constexpr Index kParallelNodes = 512;    // smaller levels run on the calling thread
+
+ private:
+  struct Block {  // symmetric 3x3
+    double xx = 0, yy = 0, zz = 0, xy = 0, xz = 0, yz = 0;
+  };
+  struct Level {
+    Index n = 0;
+    std::vector<Index> memberOffset, members;      // the finer level's nodes in each node
+    std::vector<Index> edgeU, edgeV;               // edges, u < v
+    std::vector<Index> linkOffset, links;          // per edge: the finer level's links summed into it
+    std::vector<Index> groundOffset, groundLinks;  // per node: finer links grounding it (first level only)
+    std::vector<Index> incidenceOffset, incident;  // per node: its edges in edge order (e on its u side, ~e on v)
+    std::vector<Index> aggregateOf;                // finer level node -> node here (-1: pinned)
+    Index gridWidth = 0;                           // > 0: nodes are (row, column) of a grid of this width
+    std::vector<Index> row, column;
+    std::vector<Block> ground, edge, diagonal, inverse;
+    std::vector<double> g;               // (3 edges) B_e (x_u - x_v)
+    std::vector<double> b, x, t, saved;  // (3 n) right-hand side, solution, residual, a kept solution
+  };
+  struct Link {  // a finer level's coupling, for building a coarser level
+    Index u, v;
+    double strength;
+  };
+
+  Level buildLevel(Index n, const std::vector<char>& free, const std::vector<Link>& links, Index gridWidth,
+                   const std::vector<Index>& row, const std::vector<Index>& column) const;
+  void assemble(Level& level, const Level* finer, const SpringJacobian<S>* jacobian, const Executor& exec);
+  void cycle(std::size_t k, const Executor& exec);
+  /// y = A x on a level, or y = minus - A x.
+  void product(Level& level, const std::vector<double>& x, std::vector<double>& y, const std::vector<double>* minus,
+               const Executor& exec);
+  void factorCoarsest();
+  void solveCoarsest();
+
+  const Model<S>* model_;
+  Index n_ = 0;
+  std::vector<char> free_;
+  std::vector<Level> levels_;                            // coarse levels, finest first
+  Eigen::Array<double, Eigen::Dynamic, 6> fineInverse_;  // (n x 6) fine 3x3 block inverses (0: pinned)
+  Vec3Array<S> x_, t_;                                   // fine smoothing iterate and residual
+  std::vector<double> dense_;                            // coarsest: (3 n)^2 Cholesky factor
+  bool denseCoarsest_ = false;
+};
+
+extern template class AggregationMultigrid<float>;
+extern template class AggregationMultigrid<double>;
+
+}  // namespace weft::detail
