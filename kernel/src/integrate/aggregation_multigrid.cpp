@@ -34,22 +34,25 @@ Index matchPairs(Index n, const std::vector<char>& active, const std::vector<Lin
       strength[pv] = l.strength;
     }
   pairOf.assign(static_cast<size_t>(n), -1);
+  std::vector<double> total(static_cast<size_t>(n), 0.0);  // strength to each neighbour of the node at hand
   Index pairs = 0;
   for (Index i = 0; i < n; ++i) {
     if (!active[static_cast<size_t>(i)] || pairOf[static_cast<size_t>(i)] >= 0) continue;
+    const auto begin = static_cast<size_t>(offset[static_cast<size_t>(i)]);
+    const auto end = static_cast<size_t>(offset[static_cast<size_t>(i) + 1]);
+    for (size_t p = begin; p < end; ++p) total[static_cast<size_t>(neighbour[p])] += strength[p];
     Index best = -1;
     double bestStrength = 0;
-    for (Index p = offset[static_cast<size_t>(i)]; p < offset[static_cast<size_t>(i) + 1]; ++p) {
-      const Index j = neighbour[static_cast<size_t>(p)];
+    for (size_t p = begin; p < end; ++p) {
+      const Index j = neighbour[p];
+      const double w = total[static_cast<size_t>(j)];
       if (pairOf[static_cast<size_t>(j)] >= 0) continue;
-      double total = 0;
-      for (Index q = offset[static_cast<size_t>(i)]; q < offset[static_cast<size_t>(i) + 1]; ++q)
-        if (neighbour[static_cast<size_t>(q)] == j) total += strength[static_cast<size_t>(q)];
-      if (total > bestStrength || (total == bestStrength && best >= 0 && j < best)) {
+      if (best < 0 || w > bestStrength || (w == bestStrength && j < best)) {
         best = j;
-        bestStrength = total;
+        bestStrength = w;
       }
     }
+    for (size_t p = begin; p < end; ++p) total[static_cast<size_t>(neighbour[p])] = 0;
     pairOf[static_cast<size_t>(i)] = pairs;
     if (best >= 0) pairOf[static_cast<size_t>(best)] = pairs;
     ++pairs;
@@ -129,8 +132,12 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
       coarseLinks.push_back({level.edgeU[e], level.edgeV[e], strength});
     }
     const Index coarse = level.n;
+    Index freeNodes = 0;
+    for (const char f : free) freeNodes += f ? 1 : 0;
     levels_.push_back(std::move(level));
-    if (coarse <= kCoarsestNodes || 5 * coarse > 4 * n || levels_.size() >= 24) break;
+    // A level that does not at least halve its nodes ends the hierarchy: the W-cycle visits
+    // level k 2^k times, so its cost stays linear only while every level halves.
+    if (coarse <= kCoarsestNodes || 2 * coarse > freeNodes || levels_.size() >= 24) break;
     n = coarse;
     free.assign(static_cast<size_t>(n), 1);
     links = std::move(coarseLinks);

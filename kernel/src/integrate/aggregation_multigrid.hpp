@@ -17,15 +17,17 @@
 // Groups: on a grid model (Model::grid()) 2 x 2 blocks of the grid on every level; on any
 // other model two rounds of pairwise matching by spring stiffness (Notay's pairwise
 // aggregation) per level, about four particles a group. Levels are added until at most
-// kCoarsestNodes groups remain; the coarsest is solved exactly by a dense Cholesky
-// factorisation (per step; at most 3 kDenseNodes unknowns). The pattern is built once,
-// at construction; prepare() and apply() allocate nothing.
+// kCoarsestNodes groups remain, or a level fails to halve its nodes; the coarsest is solved
+// exactly by a dense Cholesky factorisation (per step) when it has at most kDenseNodes
+// nodes, else by five block-Jacobi sweeps. The pattern is built once, at construction;
+// prepare() and apply() allocate nothing.
 //
 // The cycle: one damped block-Jacobi sweep (weight kSmoothing; the inverse of each node's
 // 3x3 diagonal block) before and after the coarse correction on every level, the coarse
 // correction scaled by kOverCorrection (piecewise-constant interpolation underestimates
 // the coarse error's energy; scaling it is the usual remedy for plain aggregation, Vanek
-// et al.), and each coarser level visited twice (a W-cycle: plain aggregation's V-cycle
+// et al.), and, below the first coarse level, each level visited twice for every visit of
+// the level above (a W-cycle: plain aggregation's V-cycle
 // loses accuracy with every level, 19, 25, 36, 51 CG iterations from 32^2 to 256^2; the
 // W-cycle 19, 24, 29 at 64^2 ... 256^2). Pre- and post-smoothing are the same symmetric
 // sweep and each level's second pass is a stationary step with a symmetric operator, so
@@ -55,7 +57,7 @@ class AggregationMultigrid {
   /// the coarsest factor. Allocates nothing.
   void prepare(const SpringJacobian<S>& jacobian, const Executor& exec);
 
-  /// z = one V-cycle applied to r (r zero on pinned particles; z is zero there too), and
+  /// z = one cycle applied to r (r zero on pinned particles; z is zero there too), and
   /// partials[k] = r . z over block k of `block` particles (block = ForceField::kSinkBlock).
   void apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials,
              Index block, const Executor& exec);
@@ -73,9 +75,13 @@ class AggregationMultigrid {
   static constexpr double kOverCorrection = 1.3;  // scale of the coarse correction
   static constexpr int kCycles = 2;               // passes on each coarser level: 2 = W-cycle
   static constexpr int kCoarseSweeps = 1;         // smoothing sweeps before and after, coarse levels
-  static constexpr Index kCoarsestNodes = 32;     // stop coarsening at or below this many nodes
-  static constexpr Index kDenseNodes = 64;        // largest coarsest level solved by dense Cholesky
-  static constexpr Index kParallelNodes = 512;    // smaller levels run on the calling thread
+  // (A third pass would need the level's original right-hand side kept apart; no sweep after
+  // the coarse correction would break the symmetry.)
+  static_assert(kCycles == 1 || kCycles == 2, "the coarse passes keep only one right-hand side");
+  static_assert(kCoarseSweeps >= 1, "pre- and post-smoothing must match");
+  static constexpr Index kCoarsestNodes = 32;   // stop coarsening at or below this many nodes
+  static constexpr Index kDenseNodes = 64;      // largest coarsest level solved by dense Cholesky
+  static constexpr Index kParallelNodes = 512;  // smaller levels run on the calling thread
 
  private:
   struct Block {  // symmetric 3x3
