@@ -109,8 +109,11 @@ TEST(AggregationMultigrid, IsSymmetricPositiveDefiniteAndClustersTheSpectrumOnEv
     std::vector<double> partials(static_cast<size_t>(Executor::blockCount(n, ForceField<double>::kSinkBlock)));
     const Eigen::MatrixXd B = denseOnFree(model, [&](const Vec3Array<double>& r, Vec3Array<double>& z) {
       multigrid.apply(jacobian, r, z, partials, ForceField<double>::kSinkBlock, exec);
-      for (Index i = 0; i < n; ++i)
-        if (model.isPinned(i)) EXPECT_TRUE(z.row(i).isZero(0)) << "pinned particle " << i;
+      for (Index i = 0; i < n; ++i) {
+        if (model.isPinned(i)) {
+          EXPECT_TRUE(z.row(i).isZero(0)) << "pinned particle " << i;
+        }
+      }
     });
     const double scale = B.cwiseAbs().maxCoeff();
     EXPECT_LE((B - B.transpose()).cwiseAbs().maxCoeff(), 1e-12 * scale) << "the cycle is not symmetric";
