@@ -451,6 +451,24 @@ void AggregationMultigrid<S>::solveCoarsest() {
 }
 
 template <class S>
+template <class Value>
+void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Executor& exec) {
+  // b_a = the sum of the finer level's residual over a's members, in member order.
+  const Index grain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+  exec.parallelFor(coarse.n, grain, [&](Index b, Index e) {
+    for (Index a = b; a < e; ++a) {
+      double sum[3] = {0, 0, 0};
+      for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
+           ++p) {
+        const Index i = coarse.members[static_cast<size_t>(p)];
+        for (int c = 0; c < 3; ++c) sum[c] += value(i, c);
+      }
+      for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
+    }
+  });
+}
+
+template <class S>
 void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   Level& level = levels_[k];
   const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
@@ -486,18 +504,8 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   }
   residual();
   Level& coarse = levels_[k + 1];
-  const Index coarseGrain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
-  exec.parallelFor(coarse.n, coarseGrain, [&](Index b, Index e) {
-    for (Index a = b; a < e; ++a) {
-      double sum[3] = {0, 0, 0};
-      for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
-           ++p) {
-        const Index i = coarse.members[static_cast<size_t>(p)];
-        for (int c = 0; c < 3; ++c) sum[c] += level.t[static_cast<size_t>(3 * i + c)];
-      }
-      for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
-    }
-  });
+  restrictTo(
+      coarse, [&](Index i, int c) { return level.t[static_cast<size_t>(3 * i + c)]; }, exec);
   cycle(k + 1, exec);
   const bool exactBelow = k + 2 == levels_.size() && denseCoarsest_;
   for (int again = 1; again < kCycles && !exactBelow; ++again) {
@@ -558,18 +566,8 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
     };
     jacobian.systemProduct(x_, makeSink<S>(residual), exec);
     Level& coarse = levels_.front();
-    const Index coarseGrain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
-    exec.parallelFor(coarse.n, coarseGrain, [&](Index b, Index e) {
-      for (Index a = b; a < e; ++a) {
-        double sum[3] = {0, 0, 0};
-        for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
-             ++p) {
-          const Index i = coarse.members[static_cast<size_t>(p)];
-          for (int c = 0; c < 3; ++c) sum[c] += static_cast<double>(t_(i, c));
-        }
-        for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
-      }
-    });
+    restrictTo(
+        coarse, [&](Index i, int c) { return static_cast<double>(t_(i, c)); }, exec);
     cycle(0, exec);
     exec.parallelFor(n_, block, [&](Index b, Index e) {
       for (Index i = b; i < e; ++i) {

@@ -109,6 +109,9 @@ class AggregationMultigrid {
   Level buildLevel(Index n, const std::vector<char>& free, const std::vector<Link>& links, Index gridWidth,
                    const std::vector<Index>& row, const std::vector<Index>& column) const;
   void assemble(Level& level, const Level* finer, const SpringJacobian<S>* jacobian, const Executor& exec);
+  /// coarse.b = the restriction of the finer level's residual, value(i, c) (node i, axis c).
+  template <class Value>
+  void restrictTo(Level& coarse, Value&& value, const Executor& exec);
   void cycle(std::size_t k, const Executor& exec);
   /// y = A x on a level, or y = minus - A x.
   void product(Level& level, const std::vector<double>& x, std::vector<double>& y, const std::vector<double>* minus,
