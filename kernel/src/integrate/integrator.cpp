@@ -76,8 +76,8 @@ const char* preconditionerName(Preconditioner p) {
 Preconditioner parsePreconditioner(const std::string& name) {
   for (const Preconditioner p : kAllPreconditioners)
     if (name == preconditionerName(p)) return p;
-  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid; got '" + name +
-                              "'");
+  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid; got '" +
+                              name + "'");
 }
 
 int integratorOrder(IntegratorKind kind) { return traits(kind).order; }
