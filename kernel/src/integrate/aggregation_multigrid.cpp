@@ -60,34 +60,6 @@ Index matchPairs(Index n, const std::vector<char>& active, const std::vector<Lin
   return pairs;
 }
 
-// y = B x for a symmetric block.
-template <class Block>
-inline void multiply(const Block& m, const double* x, double* y) {
-  y[0] = m.xx * x[0] + m.xy * x[1] + m.xz * x[2];
-  y[1] = m.xy * x[0] + m.yy * x[1] + m.yz * x[2];
-  y[2] = m.xz * x[0] + m.yz * x[1] + m.zz * x[2];
-}
-
-template <class Block>
-inline void add(Block& to, const Block& b) {
-  to.xx += b.xx;
-  to.yy += b.yy;
-  to.zz += b.zz;
-  to.xy += b.xy;
-  to.xz += b.xz;
-  to.yz += b.yz;
-}
-
-// The inverse of a symmetric positive definite block by cofactors (zero if not definite).
-template <class Block>
-Block invert(const Block& m) {
-  const double cxx = m.yy * m.zz - m.yz * m.yz, cyy = m.xx * m.zz - m.xz * m.xz, czz = m.xx * m.yy - m.xy * m.xy;
-  const double cxy = m.xz * m.yz - m.xy * m.zz, cxz = m.xy * m.yz - m.xz * m.yy, cyz = m.xy * m.xz - m.xx * m.yz;
-  const double det = m.xx * cxx + m.xy * cxy + m.xz * cxz;
-  const double f = det > 0 && std::isfinite(det) ? 1.0 / det : 0.0;
-  return {f * cxx, f * cyy, f * czz, f * cxy, f * cxz, f * cyz};
-}
-
 }  // namespace
 
 template <class S>
@@ -95,10 +67,9 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
     : model_(&model),
       n_(model.particleCount()),
       free_(static_cast<size_t>(model.particleCount())),
-      fineInverse_(model.particleCount(), 6),
+      fineInverse_(static_cast<size_t>(model.particleCount())),
       x_(model.particleCount(), 3),
       t_(model.particleCount(), 3) {
-  fineInverse_.setZero();
   x_.setZero();
   t_.setZero();
   for (Index i = 0; i < n_; ++i) free_[static_cast<size_t>(i)] = model.isPinned(i) ? 0 : 1;
@@ -147,10 +118,10 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
   }
   for (Level& l : levels_) {
     const auto nodes = static_cast<size_t>(l.n);
-    l.ground.assign(nodes, Block{});
-    l.diagonal.assign(nodes, Block{});
-    l.inverse.assign(nodes, Block{});
-    l.edge.assign(l.edgeU.size(), Block{});
+    l.ground.assign(nodes, SymmetricBlock{});
+    l.diagonal.assign(nodes, SymmetricBlock{});
+    l.inverse.assign(nodes, SymmetricBlock{});
+    l.edge.assign(l.edgeU.size(), SymmetricBlock{});
     l.b.assign(3 * nodes, 0.0);
     l.x.assign(3 * nodes, 0.0);
     l.t.assign(3 * nodes, 0.0);
@@ -288,17 +259,12 @@ void AggregationMultigrid<S>::prepare(const SpringJacobian<S>& jacobian, const E
   const Vec3Array<S>& o = jacobian.offDiagonal();
   exec.parallelFor(n_, kBlock, [&](Index b, Index e) {
     for (Index i = b; i < e; ++i) {
-      const Block inv =
+      fineInverse_[static_cast<size_t>(i)] =
           free_[static_cast<size_t>(i)]
-              ? invert(Block{static_cast<double>(d(i, 0)), static_cast<double>(d(i, 1)), static_cast<double>(d(i, 2)),
-                             static_cast<double>(o(i, 0)), static_cast<double>(o(i, 1)), static_cast<double>(o(i, 2))})
-              : Block{};
-      fineInverse_(i, 0) = inv.xx;
-      fineInverse_(i, 1) = inv.yy;
-      fineInverse_(i, 2) = inv.zz;
-      fineInverse_(i, 3) = inv.xy;
-      fineInverse_(i, 4) = inv.xz;
-      fineInverse_(i, 5) = inv.yz;
+              ? inverse(SymmetricBlock{static_cast<double>(d(i, 0)), static_cast<double>(d(i, 1)),
+                                       static_cast<double>(d(i, 2)), static_cast<double>(o(i, 0)),
+                                       static_cast<double>(o(i, 1)), static_cast<double>(o(i, 2))})
+              : SymmetricBlock{};
     }
   });
   for (size_t k = 0; k < levels_.size(); ++k)
@@ -312,17 +278,17 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
   // The finer level's link k as a block: a spring's linearisation, or a coarse edge.
   const S* dx = jacobian ? jacobian->directions().data() : nullptr;
   const Index springs = jacobian ? jacobian->directions().rows() : 0;
-  auto link = [&](Index k) -> Block {
+  auto link = [&](Index k) -> SymmetricBlock {
     if (finer) return finer->edge[static_cast<size_t>(k)];
     const double x = dx[k], y = dx[springs + k], z = dx[2 * springs + k];
     const double a = jacobian->alpha()[k], w = jacobian->beta()[k] + jacobian->gamma()[k];
     return {a + w * x * x, a + w * y * y, a + w * z * z, w * x * y, w * x * z, w * y * z};
   };
   const auto edges = static_cast<Index>(level.edgeU.size());
-  const Index edgeGrain = edges > 2 * kParallelNodes ? 1024 : std::max<Index>(edges, 1);
+  const Index edgeGrain = grainOf(edges, 1024);
   exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
     for (Index k = b; k < e; ++k) {
-      Block sum;
+      SymmetricBlock sum;
       for (Index p = level.linkOffset[static_cast<size_t>(k)]; p < level.linkOffset[static_cast<size_t>(k) + 1]; ++p)
         add(sum, link(level.links[static_cast<size_t>(p)]));
       level.edge[static_cast<size_t>(k)] = sum;
@@ -330,11 +296,11 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
   });
   const ScalarArray<S>& mass = model_->mass();
   const double drag = jacobian ? static_cast<double>(jacobian->dragTerm()) : 0.0;
-  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  const Index grain = grainOf(level.n, 256);
   exec.parallelFor(level.n, grain, [&](Index b, Index e) {
     for (Index a = b; a < e; ++a) {
       const auto ua = static_cast<size_t>(a);
-      Block g;
+      SymmetricBlock g;
       for (Index p = level.memberOffset[ua]; p < level.memberOffset[ua + 1]; ++p) {
         const Index i = level.members[static_cast<size_t>(p)];
         if (finer) {
@@ -349,13 +315,13 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
       for (Index p = level.groundOffset[ua]; p < level.groundOffset[ua + 1]; ++p)
         add(g, link(level.groundLinks[static_cast<size_t>(p)]));
       level.ground[ua] = g;
-      Block diagonal = g;
+      SymmetricBlock diagonal = g;
       for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
         const Index code = level.incident[static_cast<size_t>(p)];
         add(diagonal, level.edge[static_cast<size_t>(code >= 0 ? code : ~code)]);
       }
       level.diagonal[ua] = diagonal;
-      level.inverse[ua] = invert(diagonal);
+      level.inverse[ua] = inverse(diagonal);
     }
   });
 }
@@ -366,7 +332,7 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
   // g_e = B_e (x_u - x_v) once per edge; then y_a = G_a x_a + sum of +-g over a's edges
   // (+ on the edge's u side), or minus_a - that.
   const auto edges = static_cast<Index>(level.edgeU.size());
-  const Index edgeGrain = edges > 2 * kParallelNodes ? 1024 : std::max<Index>(edges, 1);
+  const Index edgeGrain = grainOf(edges, 1024);
   exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
     for (Index k = b; k < e; ++k) {
       const double* xu = x.data() + 3 * level.edgeU[static_cast<size_t>(k)];
@@ -375,7 +341,7 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
       multiply(level.edge[static_cast<size_t>(k)], u, level.g.data() + 3 * k);
     }
   });
-  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  const Index grain = grainOf(level.n, 256);
   exec.parallelFor(level.n, grain, [&](Index b, Index e) {
     for (Index a = b; a < e; ++a) {
       const auto ua = static_cast<size_t>(a);
@@ -404,13 +370,13 @@ void AggregationMultigrid<S>::factorCoarsest() {
   std::fill(L, L + m * m, 0.0);
   auto at = [&](Index r, Index c) -> double& { return L[r * m + c]; };  // lower triangle used
   for (Index a = 0; a < level.n; ++a) {
-    const Block& d = level.diagonal[static_cast<size_t>(a)];
+    const SymmetricBlock& d = level.diagonal[static_cast<size_t>(a)];
     const double block[3][3] = {{d.xx, d.xy, d.xz}, {d.xy, d.yy, d.yz}, {d.xz, d.yz, d.zz}};
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c <= r; ++c) at(3 * a + r, 3 * a + c) = block[r][c];
   }
   for (size_t e = 0; e < level.edgeU.size(); ++e) {
-    const Block& k = level.edge[e];
+    const SymmetricBlock& k = level.edge[e];
     const double block[3][3] = {{k.xx, k.xy, k.xz}, {k.xy, k.yy, k.yz}, {k.xz, k.yz, k.zz}};
     const Index u = level.edgeU[e], v = level.edgeV[e];  // u < v: the block sits in row v
     for (int r = 0; r < 3; ++r)
@@ -454,7 +420,7 @@ template <class S>
 template <class Value>
 void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Executor& exec) {
   // b_a = the sum of the finer level's residual over a's members, in member order.
-  const Index grain = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+  const Index grain = grainOf(coarse.n, 256);
   exec.parallelFor(coarse.n, grain, [&](Index b, Index e) {
     for (Index a = b; a < e; ++a) {
       double sum[3] = {0, 0, 0};
@@ -471,7 +437,7 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Exe
 template <class S>
 void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   Level& level = levels_[k];
-  const Index grain = level.n > kParallelNodes ? 256 : std::max<Index>(level.n, 1);
+  const Index grain = grainOf(level.n, 256);
   // x = w D^-1 (b - A x) + x over [b, e), from the residual in t.
   auto smooth = [&](bool fromZero) {
     exec.parallelFor(level.n, grain, [&](Index b, Index e) {
@@ -510,7 +476,7 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   const bool exactBelow = k + 2 == levels_.size() && denseCoarsest_;
   for (int again = 1; again < kCycles && !exactBelow; ++again) {
     // Another pass on the coarse level for its remaining residual (a W-cycle for 2).
-    const Index cg = coarse.n > kParallelNodes ? 256 : std::max<Index>(coarse.n, 1);
+    const Index cg = grainOf(coarse.n, 256);
     product(coarse, coarse.x, coarse.t, &coarse.b, exec);
     exec.parallelFor(coarse.n, cg, [&](Index b, Index e) {
       for (Index i = 3 * b; i < 3 * e; ++i) {
@@ -539,11 +505,9 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
 template <class S>
 void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z,
                                     std::vector<double>& partials, Index block, const Executor& exec) {
-  const Eigen::Array<double, Eigen::Dynamic, 6>& inv = fineInverse_;
-  auto smoothed = [&](Index i, const double* t, double* out) {
-    out[0] = kSmoothing * (inv(i, 0) * t[0] + inv(i, 3) * t[1] + inv(i, 4) * t[2]);
-    out[1] = kSmoothing * (inv(i, 3) * t[0] + inv(i, 1) * t[1] + inv(i, 5) * t[2]);
-    out[2] = kSmoothing * (inv(i, 4) * t[0] + inv(i, 5) * t[1] + inv(i, 2) * t[2]);
+  auto smoothed = [&](Index i, const double* t, double* out) {  // w D^-1 t
+    multiply(fineInverse_[static_cast<size_t>(i)], t, out);
+    for (int c = 0; c < 3; ++c) out[c] *= kSmoothing;
   };
   // Pre-smoothing from zero: x = w D^-1 r.
   exec.parallelFor(n_, block, [&](Index b, Index e) {

@@ -29,7 +29,7 @@
 // et al.), and, below the first coarse level, each level visited twice for every visit of
 // the level above (a W-cycle: plain aggregation's V-cycle
 // loses accuracy with every level, 19, 25, 36, 51 CG iterations from 32^2 to 256^2; the
-// W-cycle 19, 24, 29 at 64^2 ... 256^2). Pre- and post-smoothing are the same symmetric
+// W-cycle 16.3, 19.2, 23.5, 27.9). Pre- and post-smoothing are the same symmetric
 // sweep and each level's second pass is a stationary step with a symmetric operator, so
 // the cycle is a symmetric positive definite operator, as CG needs. On the fine level a
 // sweep costs one product with A (SpringJacobian::systemProduct; the first sweep starts
@@ -43,6 +43,7 @@
 
 #include <vector>
 
+#include "symmetric_block.hpp"
 #include "weft/effects/spring_jacobian.hpp"
 
 namespace weft::detail {
@@ -84,9 +85,6 @@ class AggregationMultigrid {
   static constexpr Index kParallelNodes = 512;  // smaller levels run on the calling thread
 
  private:
-  struct Block {  // symmetric 3x3
-    double xx = 0, yy = 0, zz = 0, xy = 0, xz = 0, yz = 0;
-  };
   struct Level {
     Index n = 0;
     std::vector<Index> memberOffset, members;      // the finer level's nodes in each node
@@ -97,7 +95,7 @@ class AggregationMultigrid {
     std::vector<Index> aggregateOf;                // finer level node -> node here (-1: pinned)
     Index gridWidth = 0;                           // > 0: nodes are (row, column) of a grid of this width
     std::vector<Index> row, column;
-    std::vector<Block> ground, edge, diagonal, inverse;
+    std::vector<SymmetricBlock> ground, edge, diagonal, inverse;
     std::vector<double> g;               // (3 edges) B_e (x_u - x_v)
     std::vector<double> b, x, t, saved;  // (3 n) right-hand side, solution, residual, a kept solution
   };
@@ -113,6 +111,9 @@ class AggregationMultigrid {
   template <class Value>
   void restrictTo(Level& coarse, Value&& value, const Executor& exec);
   void cycle(std::size_t k, const Executor& exec);
+  /// Items per block of a pass over `count` nodes or edges: `grain`, or all of them on the
+  /// calling thread below kParallelNodes (each pass is too short to share).
+  static Index grainOf(Index count, Index grain) { return count > kParallelNodes ? grain : std::max<Index>(count, 1); }
   /// y = A x on a level, or y = minus - A x.
   void product(Level& level, const std::vector<double>& x, std::vector<double>& y, const std::vector<double>* minus,
                const Executor& exec);
@@ -122,10 +123,10 @@ class AggregationMultigrid {
   const Model<S>* model_;
   Index n_ = 0;
   std::vector<char> free_;
-  std::vector<Level> levels_;                            // coarse levels, finest first
-  Eigen::Array<double, Eigen::Dynamic, 6> fineInverse_;  // (n x 6) fine 3x3 block inverses (0: pinned)
-  Vec3Array<S> x_, t_;                                   // fine smoothing iterate and residual
-  std::vector<double> dense_;                            // coarsest: (3 n)^2 Cholesky factor
+  std::vector<Level> levels_;                // coarse levels, finest first
+  std::vector<SymmetricBlock> fineInverse_;  // (n) fine 3x3 block inverses (0: pinned)
+  Vec3Array<S> x_, t_;                       // fine smoothing iterate and residual
+  std::vector<double> dense_;                // coarsest: (3 n)^2 Cholesky factor
   bool denseCoarsest_ = false;
 };
 

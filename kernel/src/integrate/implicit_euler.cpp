@@ -36,6 +36,7 @@
 #include "aggregation_multigrid.hpp"
 #include "row_blocks.hpp"
 #include "spring_laplacian_solver.hpp"
+#include "symmetric_block.hpp"
 #include "weft/effects/spring_jacobian.hpp"
 
 namespace weft::detail {
@@ -252,17 +253,15 @@ class ImplicitEuler final : public Integrator<S> {
     const Vec3Array<S>& d = jacobian_.diagonal();
     const Vec3Array<S>& o = jacobian_.offDiagonal();
     for (Index i = b; i < b + m; ++i) {
-      const double xx = d(i, 0), yy = d(i, 1), zz = d(i, 2), xy = o(i, 0), xz = o(i, 1), yz = o(i, 2);
-      const double cxx = yy * zz - yz * yz, cyy = xx * zz - xz * xz, czz = xx * yy - xy * xy;
-      const double cxy = xz * yz - xy * zz, cxz = xy * yz - xz * yy, cyz = xy * xz - xx * yz;
-      const double det = xx * cxx + xy * cxy + xz * cxz;
-      const double f = free_[i] != S(0) && det > 0 ? 1.0 / det : 0.0;
-      inverseBlock_(i, 0) = static_cast<S>(f * cxx);
-      inverseBlock_(i, 1) = static_cast<S>(f * cyy);
-      inverseBlock_(i, 2) = static_cast<S>(f * czz);
-      inverseBlock_(i, 3) = static_cast<S>(f * cxy);
-      inverseBlock_(i, 4) = static_cast<S>(f * cxz);
-      inverseBlock_(i, 5) = static_cast<S>(f * cyz);
+      const SymmetricBlock k = free_[i] != S(0)
+                                   ? inverse(SymmetricBlock{d(i, 0), d(i, 1), d(i, 2), o(i, 0), o(i, 1), o(i, 2)})
+                                   : SymmetricBlock{};
+      inverseBlock_(i, 0) = static_cast<S>(k.xx);
+      inverseBlock_(i, 1) = static_cast<S>(k.yy);
+      inverseBlock_(i, 2) = static_cast<S>(k.zz);
+      inverseBlock_(i, 3) = static_cast<S>(k.xy);
+      inverseBlock_(i, 4) = static_cast<S>(k.xz);
+      inverseBlock_(i, 5) = static_cast<S>(k.yz);
     }
   }
   /// z = M^-1 r and partialA = r . z per block, for the preconditioners applied after the
