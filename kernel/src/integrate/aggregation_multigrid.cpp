@@ -60,10 +60,51 @@ Index matchPairs(Index n, const std::vector<char>& active, const std::vector<Lin
   return pairs;
 }
 
+// The stencil product of a grid level over slots [0, count) (pointers offset to the first):
+// y = G x (G: ground blocks, 6 entries each with stride n), then for each direction
+// y += B_i (x_i - x_{i+o}) - B_{i-o} (x_{i-o} - x_i), directions in order. Contiguous loads
+// only; every slot sums in the same order whatever the blocks, so any split into blocks
+// gives the same bits.
+[[gnu::noinline]] void stencilGround(Index count, Index n, const double* __restrict G, const double* __restrict x,
+                                     const double* __restrict y, const double* __restrict z, double* __restrict ox,
+                                     double* __restrict oy, double* __restrict oz) {
+  const double *xx = G, *yy = G + n, *zz = G + 2 * n, *xy = G + 3 * n, *xz = G + 4 * n, *yz = G + 5 * n;
+  for (Index i = 0; i < count; ++i) {
+    ox[i] = xx[i] * x[i] + xy[i] * y[i] + xz[i] * z[i];
+    oy[i] = xy[i] * x[i] + yy[i] * y[i] + yz[i] * z[i];
+    oz[i] = xz[i] * x[i] + yz[i] * y[i] + zz[i] * z[i];
+  }
+}
+
+[[gnu::noinline]] void stencilDirection(Index count, Index n, Index o, const double* __restrict B,
+                                        const double* __restrict x, const double* __restrict y,
+                                        const double* __restrict z, double* __restrict ox, double* __restrict oy,
+                                        double* __restrict oz) {
+  const double *xx = B, *yy = B + n, *zz = B + 2 * n, *xy = B + 3 * n, *xz = B + 4 * n, *yz = B + 5 * n;
+  for (Index i = 0; i < count; ++i) {
+    const double ux = x[i] - x[i + o], uy = y[i] - y[i + o], uz = z[i] - z[i + o];
+    const double vx = x[i - o] - x[i], vy = y[i - o] - y[i], vz = z[i - o] - z[i];
+    const Index j = i - o;
+    ox[i] += (xx[i] * ux + xy[i] * uy + xz[i] * uz) - (xx[j] * vx + xy[j] * vy + xz[j] * vz);
+    oy[i] += (xy[i] * ux + yy[i] * uy + yz[i] * uz) - (xy[j] * vx + yy[j] * vy + yz[j] * vz);
+    oz[i] += (xz[i] * ux + yz[i] * uy + zz[i] * uz) - (xz[j] * vx + yz[j] * vy + zz[j] * vz);
+  }
+}
+
+// Scatters a block into 6 arrays of stride n at slot i.
+void storeBlock(double* to, Index n, Index i, const SymmetricBlock& m) {
+  to[i] = m.xx;
+  to[n + i] = m.yy;
+  to[2 * n + i] = m.zz;
+  to[3 * n + i] = m.xy;
+  to[4 * n + i] = m.xz;
+  to[5 * n + i] = m.yz;
+}
+
 }  // namespace
 
 template <class S>
-AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
+AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model, bool stencil)
     : model_(&model),
       n_(model.particleCount()),
       free_(static_cast<size_t>(model.particleCount())),
@@ -92,8 +133,8 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
   std::vector<char> free = free_;
   for (;;) {
     std::vector<Link> coarseLinks;
-    Level level = buildLevel(n, free, links, gridWidth, row, column);
-    if (level.n == 0) break;
+    Level level = buildLevel(n, free, links, gridWidth, row, column, stencil);
+    if (level.active == 0) break;
     // Coarse edges link this level to the next; their strengths are the summed springs'.
     coarseLinks.reserve(level.edgeU.size());
     for (size_t e = 0; e < level.edgeU.size(); ++e) {
@@ -102,15 +143,20 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
         strength += links[static_cast<size_t>(level.links[static_cast<size_t>(p)])].strength;
       coarseLinks.push_back({level.edgeU[e], level.edgeV[e], strength});
     }
-    const Index coarse = level.n;
+    const Index coarse = level.active;
     Index freeNodes = 0;
     for (const char f : free) freeNodes += f ? 1 : 0;
     levels_.push_back(std::move(level));
     // A level that does not at least halve its nodes ends the hierarchy: the W-cycle visits
     // level k 2^k times, so its cost stays linear only while every level halves.
     if (coarse <= kCoarsestNodes || 2 * coarse > freeNodes || levels_.size() >= 24) break;
-    n = coarse;
-    free.assign(static_cast<size_t>(n), 1);
+    n = levels_.back().n;
+    free.assign(static_cast<size_t>(n), 0);
+    for (Index a = 0; a < n; ++a)
+      free[static_cast<size_t>(a)] =
+          levels_.back().memberOffset[static_cast<size_t>(a) + 1] > levels_.back().memberOffset[static_cast<size_t>(a)]
+              ? 1
+              : 0;
     links = std::move(coarseLinks);
     gridWidth = levels_.back().gridWidth;
     row = levels_.back().row;
@@ -127,39 +173,49 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model)
     l.t.assign(3 * nodes, 0.0);
     l.saved.assign(3 * nodes, 0.0);
     l.g.assign(3 * l.edgeU.size(), 0.0);
+    if (l.stencil) {
+      l.stencilBlocks.assign(4 * 6 * nodes, 0.0);
+      l.groundBlocks.assign(6 * nodes, 0.0);
+    }
   }
-  if (!levels_.empty() && levels_.back().n <= kDenseNodes) {
+  if (!levels_.empty() && levels_.back().active <= kDenseNodes) {
     denseCoarsest_ = true;
-    const auto m = static_cast<size_t>(3 * levels_.back().n);
-    dense_.assign(m * m + m, 0.0);  // the factor, then 1 / its diagonal
+    const Level& last = levels_.back();
+    for (Index a = 0; a < last.n; ++a)
+      if (last.memberOffset[static_cast<size_t>(a) + 1] > last.memberOffset[static_cast<size_t>(a)])
+        denseNode_.push_back(a);
+    const size_t m = 3 * denseNode_.size();
+    dense_.assign(m * m + m, 0.0);
+    denseRhs_.assign(m, 0.0);
   }
 }
 
 template <class S>
-typename AggregationMultigrid<S>::Level AggregationMultigrid<S>::buildLevel(Index n, const std::vector<char>& free,
-                                                                            const std::vector<Link>& links,
-                                                                            Index gridWidth,
-                                                                            const std::vector<Index>& row,
-                                                                            const std::vector<Index>& column) const {
+typename AggregationMultigrid<S>::Level AggregationMultigrid<S>::buildLevel(
+    Index n, const std::vector<char>& free, const std::vector<Link>& links, Index gridWidth,
+    const std::vector<Index>& row, const std::vector<Index>& column, bool stencil) const {
   Level level;
   level.aggregateOf.assign(static_cast<size_t>(n), -1);
-  if (gridWidth > 0) {  // 2 x 2 blocks of the grid, numbered in order of their first node
-    const Index width = (gridWidth + 1) / 2;
+  if (gridWidth > 0) {  // 2 x 2 blocks of the grid, in slots of a padded rectangle
+    const Index width = (gridWidth + 1) / 2, stride = width + 2;
     Index rows = 0;
-    for (Index i = 0; i < n; ++i) rows = std::max(rows, row[static_cast<size_t>(i)] / 2 + 1);
-    std::vector<Index> nodeOfBlock(static_cast<size_t>(rows * width), -1);
+    for (Index i = 0; i < n; ++i)
+      if (free[static_cast<size_t>(i)]) rows = std::max(rows, row[static_cast<size_t>(i)] / 2 + 1);
+    level.n = (rows + 2) * stride;
+    level.row.assign(static_cast<size_t>(level.n), -1);
+    level.column.assign(static_cast<size_t>(level.n), -1);
+    for (Index r = 0; r < rows; ++r)
+      for (Index c = 0; c < width; ++c) {
+        level.row[static_cast<size_t>((r + 1) * stride + c + 1)] = r;
+        level.column[static_cast<size_t>((r + 1) * stride + c + 1)] = c;
+      }
     for (Index i = 0; i < n; ++i) {
       if (!free[static_cast<size_t>(i)]) continue;
       const Index r = row[static_cast<size_t>(i)] / 2, c = column[static_cast<size_t>(i)] / 2;
-      Index& node = nodeOfBlock[static_cast<size_t>(r * width + c)];
-      if (node < 0) {
-        node = level.n++;
-        level.row.push_back(r);
-        level.column.push_back(c);
-      }
-      level.aggregateOf[static_cast<size_t>(i)] = node;
+      level.aggregateOf[static_cast<size_t>(i)] = (r + 1) * stride + c + 1;
     }
     level.gridWidth = width;
+    level.stride = stride;
   } else {  // two rounds of pairwise matching
     std::vector<Index> first, second;
     const Index pairs = matchPairs(n, free, links, first);
@@ -188,6 +244,8 @@ typename AggregationMultigrid<S>::Level AggregationMultigrid<S>::buildLevel(Inde
   for (Index a = 0; a < level.n; ++a)
     level.memberOffset[static_cast<size_t>(a) + 1] += level.memberOffset[static_cast<size_t>(a)];
   level.members.resize(static_cast<size_t>(level.memberOffset.back()));
+  for (Index a = 0; a < level.n; ++a)
+    if (level.memberOffset[static_cast<size_t>(a) + 1] > level.memberOffset[static_cast<size_t>(a)]) ++level.active;
   {
     std::vector<Index> fill(level.memberOffset.begin(), level.memberOffset.end() - 1);
     for (Index i = 0; i < n; ++i)
@@ -242,13 +300,31 @@ typename AggregationMultigrid<S>::Level AggregationMultigrid<S>::buildLevel(Inde
       level.incident[static_cast<size_t>(fill[static_cast<size_t>(level.edgeV[e])]++)] = ~static_cast<Index>(e);
     }
   }
+  // A grid level whose edges all join a slot to a stencil neighbour (fine springs reach at
+  // most two particles: on every coarse level then) takes the stencil product.
+  if (stencil && level.gridWidth > 0) {
+    const Index s = level.stride;
+    const Index offsets[4] = {1, s - 1, s, s + 1};  // east, south-west, south, south-east
+    std::copy(offsets, offsets + 4, level.offset);
+    level.stencil = true;
+    for (size_t e = 0; e < level.edgeU.size() && level.stencil; ++e) {
+      const Index o = level.edgeV[e] - level.edgeU[e];
+      const Index* d = std::find(offsets, offsets + 4, o);
+      if (d == offsets + 4) {
+        level.stencil = false;
+      } else {
+        level.stencilSlot.push_back((d - offsets) * level.n + level.edgeU[e]);
+      }
+    }
+    if (!level.stencil) level.stencilSlot.clear();
+  }
   return level;
 }
 
 template <class S>
 std::vector<Index> AggregationMultigrid<S>::coarseSizes() const {
   std::vector<Index> sizes;
-  for (const Level& l : levels_) sizes.push_back(l.n);
+  for (const Level& l : levels_) sizes.push_back(l.active);
   return sizes;
 }
 
@@ -292,6 +368,10 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
       for (Index p = level.linkOffset[static_cast<size_t>(k)]; p < level.linkOffset[static_cast<size_t>(k) + 1]; ++p)
         add(sum, link(level.links[static_cast<size_t>(p)]));
       level.edge[static_cast<size_t>(k)] = sum;
+      if (level.stencil) {
+        const Index slot = level.stencilSlot[static_cast<size_t>(k)];
+        storeBlock(level.stencilBlocks.data() + (slot / level.n) * 6 * level.n, level.n, slot % level.n, sum);
+      }
     }
   });
   const ScalarArray<S>& mass = model_->mass();
@@ -315,6 +395,7 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
       for (Index p = level.groundOffset[ua]; p < level.groundOffset[ua + 1]; ++p)
         add(g, link(level.groundLinks[static_cast<size_t>(p)]));
       level.ground[ua] = g;
+      if (level.stencil) storeBlock(level.groundBlocks.data(), level.n, a, g);
       SymmetricBlock diagonal = g;
       for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
         const Index code = level.incident[static_cast<size_t>(p)];
@@ -329,24 +410,61 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
 template <class S>
 void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x, std::vector<double>& y,
                                       const std::vector<double>* minus, const Executor& exec) {
+  const Index n = level.n;
+  const double* X = x.data();
+  double* Y = y.data();
+  const Index grain = grainOf(n, 256);
+  if (level.stencil) {
+    // Slots outside [first, last) are the ring's first and last rows (and one slot more):
+    // no edge reaches them, and their product is 0.
+    const Index first = level.stride + 1, last = n - level.stride - 1;
+    // Each block sums into local rows and writes every output once (several passes over
+    // shared output lines would bounce them between the threads).
+    exec.parallelFor(n, grain, [&](Index b, Index e) {
+      constexpr Index kChunk = 256;
+      alignas(64) double out[3][kChunk];
+      for (Index c0 = b; c0 < e; c0 += kChunk) {
+        const Index c1 = std::min(e, c0 + kChunk);
+        const Index lo = std::clamp(c0, first, last), hi = std::clamp(c1, first, last);
+        std::fill_n(&out[0][0], 3 * kChunk, 0.0);
+        if (hi > lo) {
+          const Index m = hi - lo, at = lo - c0;
+          stencilGround(m, n, level.groundBlocks.data() + lo, X + lo, X + n + lo, X + 2 * n + lo, out[0] + at,
+                        out[1] + at, out[2] + at);
+          for (int d = 0; d < 4; ++d)
+            stencilDirection(m, n, level.offset[d], level.stencilBlocks.data() + d * 6 * n + lo, X + lo, X + n + lo,
+                             X + 2 * n + lo, out[0] + at, out[1] + at, out[2] + at);
+        }
+        for (int c = 0; c < 3; ++c) {
+          double* to = Y + c * n + c0;
+          if (minus) {
+            const double* from = minus->data() + c * n + c0;
+            for (Index a = 0; a < c1 - c0; ++a) to[a] = from[a] - out[c][a];
+          } else {
+            std::copy_n(out[c], c1 - c0, to);
+          }
+        }
+      }
+    });
+    return;
+  }
   // g_e = B_e (x_u - x_v) once per edge; then y_a = G_a x_a + sum of +-g over a's edges
   // (+ on the edge's u side), or minus_a - that.
   const auto edges = static_cast<Index>(level.edgeU.size());
   const Index edgeGrain = grainOf(edges, 1024);
   exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
     for (Index k = b; k < e; ++k) {
-      const double* xu = x.data() + 3 * level.edgeU[static_cast<size_t>(k)];
-      const double* xv = x.data() + 3 * level.edgeV[static_cast<size_t>(k)];
-      const double u[3] = {xu[0] - xv[0], xu[1] - xv[1], xu[2] - xv[2]};
-      multiply(level.edge[static_cast<size_t>(k)], u, level.g.data() + 3 * k);
+      const Index u = level.edgeU[static_cast<size_t>(k)], v = level.edgeV[static_cast<size_t>(k)];
+      const double d[3] = {X[u] - X[v], X[n + u] - X[n + v], X[2 * n + u] - X[2 * n + v]};
+      multiply(level.edge[static_cast<size_t>(k)], d, level.g.data() + 3 * k);
     }
   });
-  const Index grain = grainOf(level.n, 256);
-  exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+  exec.parallelFor(n, grain, [&](Index b, Index e) {
     for (Index a = b; a < e; ++a) {
       const auto ua = static_cast<size_t>(a);
+      const double xa[3] = {X[a], X[n + a], X[2 * n + a]};
       double out[3];
-      multiply(level.ground[ua], x.data() + 3 * a, out);
+      multiply(level.ground[ua], xa, out);
       for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
         const Index code = level.incident[static_cast<size_t>(p)];
         const double* g = level.g.data() + 3 * (code >= 0 ? code : ~code);
@@ -355,8 +473,7 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
         out[1] += sign * g[1];
         out[2] += sign * g[2];
       }
-      for (int c = 0; c < 3; ++c)
-        y[static_cast<size_t>(3 * a + c)] = minus ? (*minus)[static_cast<size_t>(3 * a + c)] - out[c] : out[c];
+      for (int c = 0; c < 3; ++c) Y[c * n + a] = minus ? (*minus)[static_cast<size_t>(c * n + a)] - out[c] : out[c];
     }
   });
 }
@@ -364,21 +481,26 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
 template <class S>
 void AggregationMultigrid<S>::factorCoarsest() {
   const Level& level = levels_.back();
-  const Index m = 3 * level.n;
+  const auto nodes = static_cast<Index>(denseNode_.size());
+  const Index m = 3 * nodes;
   double* L = dense_.data();
   double* inversePivot = L + m * m;
   std::fill(L, L + m * m, 0.0);
   auto at = [&](Index r, Index c) -> double& { return L[r * m + c]; };  // lower triangle used
-  for (Index a = 0; a < level.n; ++a) {
-    const SymmetricBlock& d = level.diagonal[static_cast<size_t>(a)];
+  // Slots are in increasing order in denseNode_, so an edge's u < v stays so densely.
+  auto denseOf = [&](Index slot) {
+    return static_cast<Index>(std::lower_bound(denseNode_.begin(), denseNode_.end(), slot) - denseNode_.begin());
+  };
+  for (Index k = 0; k < nodes; ++k) {
+    const SymmetricBlock& d = level.diagonal[static_cast<size_t>(denseNode_[static_cast<size_t>(k)])];
     const double block[3][3] = {{d.xx, d.xy, d.xz}, {d.xy, d.yy, d.yz}, {d.xz, d.yz, d.zz}};
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c <= r; ++c) at(3 * a + r, 3 * a + c) = block[r][c];
+      for (int c = 0; c <= r; ++c) at(3 * k + r, 3 * k + c) = block[r][c];
   }
   for (size_t e = 0; e < level.edgeU.size(); ++e) {
     const SymmetricBlock& k = level.edge[e];
     const double block[3][3] = {{k.xx, k.xy, k.xz}, {k.xy, k.yy, k.yz}, {k.xz, k.yz, k.zz}};
-    const Index u = level.edgeU[e], v = level.edgeV[e];  // u < v: the block sits in row v
+    const Index u = denseOf(level.edgeU[e]), v = denseOf(level.edgeV[e]);  // u < v: the block sits in row v
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) at(3 * v + r, 3 * u + c) = -block[r][c];
   }
@@ -400,12 +522,15 @@ void AggregationMultigrid<S>::factorCoarsest() {
 template <class S>
 void AggregationMultigrid<S>::solveCoarsest() {
   Level& level = levels_.back();
-  const Index m = 3 * level.n;
+  const auto nodes = static_cast<Index>(denseNode_.size());
+  const Index m = 3 * nodes, n = level.n;
   const double* L = dense_.data();
   const double* inversePivot = L + m * m;
-  double* x = level.x.data();
+  double* x = denseRhs_.data();
+  for (Index k = 0; k < nodes; ++k)
+    for (int c = 0; c < 3; ++c) x[3 * k + c] = level.b[static_cast<size_t>(c * n + denseNode_[static_cast<size_t>(k)])];
   for (Index j = 0; j < m; ++j) {  // L y = b
-    double s = level.b[static_cast<size_t>(j)];
+    double s = x[j];
     for (Index p = 0; p < j; ++p) s -= L[j * m + p] * x[p];
     x[j] = s * inversePivot[j];
   }
@@ -414,14 +539,17 @@ void AggregationMultigrid<S>::solveCoarsest() {
     for (Index p = j + 1; p < m; ++p) s -= L[p * m + j] * x[p];
     x[j] = s * inversePivot[j];
   }
+  for (Index k = 0; k < nodes; ++k)
+    for (int c = 0; c < 3; ++c) level.x[static_cast<size_t>(c * n + denseNode_[static_cast<size_t>(k)])] = x[3 * k + c];
 }
 
 template <class S>
 template <class Value>
 void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Executor& exec) {
   // b_a = the sum of the finer level's residual over a's members, in member order.
-  const Index grain = grainOf(coarse.n, 256);
-  exec.parallelFor(coarse.n, grain, [&](Index b, Index e) {
+  const Index n = coarse.n;
+  const Index grain = grainOf(n, 256);
+  exec.parallelFor(n, grain, [&](Index b, Index e) {
     for (Index a = b; a < e; ++a) {
       double sum[3] = {0, 0, 0};
       for (Index p = coarse.memberOffset[static_cast<size_t>(a)]; p < coarse.memberOffset[static_cast<size_t>(a) + 1];
@@ -429,7 +557,7 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Exe
         const Index i = coarse.members[static_cast<size_t>(p)];
         for (int c = 0; c < 3; ++c) sum[c] += value(i, c);
       }
-      for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(3 * a + c)] = sum[c];
+      for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(c * n + a)] = sum[c];
     }
   });
 }
@@ -437,16 +565,18 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Exe
 template <class S>
 void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   Level& level = levels_[k];
-  const Index grain = grainOf(level.n, 256);
+  const Index n = level.n;
+  const Index grain = grainOf(n, 256);
   // x = w D^-1 (b - A x) + x over [b, e), from the residual in t.
   auto smooth = [&](bool fromZero) {
-    exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+    exec.parallelFor(n, grain, [&](Index b, Index e) {
+      const double* t = (fromZero ? level.b : level.t).data();
+      double* x = level.x.data();
       for (Index a = b; a < e; ++a) {
+        const double ta[3] = {t[a], t[n + a], t[2 * n + a]};
         double dz[3];
-        multiply(level.inverse[static_cast<size_t>(a)], (fromZero ? level.b : level.t).data() + 3 * a, dz);
-        for (int c = 0; c < 3; ++c)
-          level.x[static_cast<size_t>(3 * a + c)] =
-              (fromZero ? 0.0 : level.x[static_cast<size_t>(3 * a + c)]) + kSmoothing * dz[c];
+        multiply(level.inverse[static_cast<size_t>(a)], ta, dz);
+        for (int c = 0; c < 3; ++c) x[c * n + a] = (fromZero ? 0.0 : x[c * n + a]) + kSmoothing * dz[c];
       }
     });
   };
@@ -471,29 +601,35 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   residual();
   Level& coarse = levels_[k + 1];
   restrictTo(
-      coarse, [&](Index i, int c) { return level.t[static_cast<size_t>(3 * i + c)]; }, exec);
+      coarse, [&](Index i, int c) { return level.t[static_cast<size_t>(c * n + i)]; }, exec);
   cycle(k + 1, exec);
   const bool exactBelow = k + 2 == levels_.size() && denseCoarsest_;
   for (int again = 1; again < kCycles && !exactBelow; ++again) {
     // Another pass on the coarse level for its remaining residual (a W-cycle for 2).
-    const Index cg = grainOf(coarse.n, 256);
+    const Index cn = coarse.n;
+    const Index cg = grainOf(cn, 256);
     product(coarse, coarse.x, coarse.t, &coarse.b, exec);
-    exec.parallelFor(coarse.n, cg, [&](Index b, Index e) {
-      for (Index i = 3 * b; i < 3 * e; ++i) {
-        coarse.saved[static_cast<size_t>(i)] = coarse.x[static_cast<size_t>(i)];
-        coarse.b[static_cast<size_t>(i)] = coarse.t[static_cast<size_t>(i)];
-      }
+    exec.parallelFor(cn, cg, [&](Index b, Index e) {
+      for (int c = 0; c < 3; ++c)
+        for (Index i = c * cn + b; i < c * cn + e; ++i) {
+          coarse.saved[static_cast<size_t>(i)] = coarse.x[static_cast<size_t>(i)];
+          coarse.b[static_cast<size_t>(i)] = coarse.t[static_cast<size_t>(i)];
+        }
     });
     cycle(k + 1, exec);
-    exec.parallelFor(coarse.n, cg, [&](Index b, Index e) {
-      for (Index i = 3 * b; i < 3 * e; ++i) coarse.x[static_cast<size_t>(i)] += coarse.saved[static_cast<size_t>(i)];
+    exec.parallelFor(cn, cg, [&](Index b, Index e) {
+      for (int c = 0; c < 3; ++c)
+        for (Index i = c * cn + b; i < c * cn + e; ++i)
+          coarse.x[static_cast<size_t>(i)] += coarse.saved[static_cast<size_t>(i)];
     });
   }
-  exec.parallelFor(level.n, grain, [&](Index b, Index e) {
+  const Index cn = coarse.n;
+  exec.parallelFor(n, grain, [&](Index b, Index e) {
     for (Index i = b; i < e; ++i) {
       const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
+      if (a < 0) continue;
       for (int c = 0; c < 3; ++c)
-        level.x[static_cast<size_t>(3 * i + c)] += kOverCorrection * coarse.x[static_cast<size_t>(3 * a + c)];
+        level.x[static_cast<size_t>(c * n + i)] += kOverCorrection * coarse.x[static_cast<size_t>(c * cn + a)];
     }
   });
   for (int sweep = 0; sweep < kCoarseSweeps; ++sweep) {
@@ -533,13 +669,14 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
     restrictTo(
         coarse, [&](Index i, int c) { return static_cast<double>(t_(i, c)); }, exec);
     cycle(0, exec);
+    const Index cn = coarse.n;
     exec.parallelFor(n_, block, [&](Index b, Index e) {
       for (Index i = b; i < e; ++i) {
         const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
         if (a < 0) continue;
         for (int c = 0; c < 3; ++c)
           x_(i, c) = static_cast<S>(static_cast<double>(x_(i, c)) +
-                                    kOverCorrection * coarse.x[static_cast<size_t>(3 * a + c)]);
+                                    kOverCorrection * coarse.x[static_cast<size_t>(c * cn + a)]);
       }
     });
   }
