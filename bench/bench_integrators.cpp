@@ -285,6 +285,46 @@ BENCHMARK(BM_Implicit_Step)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// ---------------------------------------------------------------------------------------
+// BM_Jacobian_SystemProduct: one product with implicit Euler's matrix A (what every CG
+// iteration and each multigrid cycle's fine sweeps cost) on the size^2 flag, linearised at
+// its stretched rest state at dt = 1/60, by thread count. Counter: springs per second.
+// ---------------------------------------------------------------------------------------
+
+template <class S>
+void BM_Jacobian_SystemProduct(benchmark::State& st) {
+  const auto size = static_cast<weft::Index>(st.range(0));
+  const weft::ModelAndState<S> flag = weft::makeFlag<S>(size);
+  const weft::Executor exec(static_cast<int>(st.range(1)));
+  weft::SpringJacobian<S> jacobian(flag.model);
+  const weft::Vec3Array<S> x = flag.state.x * S(1.02);
+  jacobian.linearize(x, S(1.0 / 60), exec, S(0.01));
+  weft::Vec3Array<S> p = flag.state.x;
+  S checksum = 0;
+  auto sink = [&](weft::Index, weft::Index m, const S* yx, const S*, const S*) { checksum += yx[m - 1]; };
+  const std::int64_t allocationsBefore = weftbench::allocationCount();
+  std::int64_t products = 0;
+  for (auto _ : st) {
+    jacobian.systemProduct(p, weft::makeSink<S>(sink), exec);
+    ++products;
+  }
+  benchmark::DoNotOptimize(checksum);
+  st.counters["allocs_per_product"] = static_cast<double>(weftbench::allocationCount() - allocationsBefore) /
+                                      static_cast<double>(std::max<std::int64_t>(products, 1));
+  st.counters["springs_per_second"] =
+      benchmark::Counter(static_cast<double>(flag.model.springCount()), benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_Jacobian_SystemProduct<double>)
+    ->ArgNames({"size", "threads"})
+    ->ArgsProduct({{128, 256}, {1, 2}})
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+BENCHMARK(BM_Jacobian_SystemProduct<float>)
+    ->ArgNames({"size", "threads"})
+    ->ArgsProduct({{128}, {1, 2}})
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+
 void BM_Textbook_Rk4_double(benchmark::State& st) {
   const auto size = static_cast<weft::Index>(st.range(0));
   const weft::ModelAndState<double> built = weft::makeFlag<double>(size);

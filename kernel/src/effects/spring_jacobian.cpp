@@ -26,7 +26,8 @@ template <class S>
                                         const S* __restrict x, const S* __restrict y, const S* __restrict z,
                                         const S* __restrict rest, const S* __restrict ks, const S* __restrict kd, S h,
                                         S* __restrict dx, S* __restrict dy, S* __restrict dz, S* __restrict alpha,
-                                        S* __restrict beta, S* __restrict gamma) {
+                                        S* __restrict beta, S* __restrict gamma, S* __restrict vx, S* __restrict vy,
+                                        S* __restrict vz) {
   const S h2 = h * h;
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
@@ -45,6 +46,10 @@ template <class S>
     alpha[s] = h2 * ks[s] * c;
     beta[s] = h2 * ks[s] * (S(1) - c);
     gamma[s] = h * kd[s];
+    const S root = std::sqrt(beta[s] + gamma[s]);  // beta, gamma >= 0
+    vx[s] = root * dx[s];
+    vy[s] = root * dy[s];
+    vz[s] = root * dz[s];
   }
 }
 
@@ -62,6 +67,40 @@ template <class S, bool kDamping>
     gx[s] = alpha[s] * ux + along * dx[s];
     gy[s] = alpha[s] * uy + along * dy[s];
     gz[s] = alpha[s] * uz + along * dz[s];
+  }
+}
+
+// The system product's springs with v = sqrt(beta + gamma) d: g = alpha u + v (v . u), the
+// same block alpha I + (beta + gamma) d d^T from four numbers a spring instead of six.
+template <class S>
+[[gnu::noinline]] void scaledSpringProducts(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
+                                            const S* __restrict px, const S* __restrict py, const S* __restrict pz,
+                                            const S* __restrict vx, const S* __restrict vy, const S* __restrict vz,
+                                            const S* __restrict alpha, S* __restrict gx, S* __restrict gy,
+                                            S* __restrict gz) {
+  for (Index s = b; s < e; ++s) {
+    const Index i = A[s], j = B[s];
+    const S ux = px[i] - px[j], uy = py[i] - py[j], uz = pz[i] - pz[j];
+    const S along = vx[s] * ux + vy[s] * uy + vz[s] * uz;
+    gx[s] = alpha[s] * ux + along * vx[s];
+    gy[s] = alpha[s] * uy + along * vy[s];
+    gz[s] = alpha[s] * uz + along * vz[s];
+  }
+}
+
+// The same for count springs of one grid family starting at consecutive particles.
+template <class S>
+[[gnu::noinline]] void scaledStridedProducts(Index count, Index offset, const S* __restrict px, const S* __restrict py,
+                                             const S* __restrict pz, const S* __restrict vx, const S* __restrict vy,
+                                             const S* __restrict vz, const S* __restrict alpha, S* __restrict gx,
+                                             S* __restrict gy, S* __restrict gz) {
+  for (Index t = 0; t < count; ++t) {
+    const Index j = t + offset;
+    const S ux = px[t] - px[j], uy = py[t] - py[j], uz = pz[t] - pz[j];
+    const S along = vx[t] * ux + vy[t] * uy + vz[t] * uz;
+    gx[t] = alpha[t] * ux + along * vx[t];
+    gy[t] = alpha[t] * uy + along * vy[t];
+    gz[t] = alpha[t] * uz + along * vz[t];
   }
 }
 
@@ -102,6 +141,7 @@ template <class S>
 SpringJacobian<S>::SpringJacobian(const Model<S>& model)
     : model_(&model),
       direction_(model.springCount(), 3),
+      scaled_(model.springCount(), 3),
       alpha_(model.springCount()),
       beta_(model.springCount()),
       gamma_(model.springCount()),
@@ -110,6 +150,7 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       offDiagonal_(model.particleCount(), 3) {
   incidence_ = &model.springIncidence();  // built once per Model
   direction_.setZero();
+  scaled_.setZero();
   alpha_.setZero();
   beta_.setZero();
   gamma_.setZero();
@@ -133,7 +174,8 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
   exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
     linearizeSprings(b, e, sp.a.data(), sp.b.data(), col(x, 0), col(x, 1), col(x, 2), sp.restLength.data(),
                      sp.stiffness.data(), sp.damping.data(), h, col(direction_, 0), col(direction_, 1),
-                     col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data());
+                     col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data(), col(scaled_, 0), col(scaled_, 1),
+                     col(scaled_, 2));
   });
   // diag(A)_i = m_i + sum over the springs of i of alpha + (beta + gamma) d_c^2.
   exec.parallelFor(model_->particleCount(), ForceField<S>::kSinkBlock, [&](Index b, Index e) {
@@ -178,7 +220,12 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
       S* gz = slot(k, 2);
       for (Index r = r0; r < last; ++r) {
         const Index i = r * W + c0, s = f.firstSpring + r * count;
-        stridedProducts<S, kSystem>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
+        if constexpr (kSystem)
+          scaledStridedProducts<S>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
+                                   col(p, 2) + i, col(scaled_, 0) + s, col(scaled_, 1) + s, col(scaled_, 2) + s,
+                                   alpha_.data() + s, gx + i, gy + i, gz + i);
+        else
+          stridedProducts<S, false>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
                                     col(p, 2) + i, col(direction_, 0) + s, col(direction_, 1) + s,
                                     col(direction_, 2) + s, alpha_.data() + s, beta_.data() + s, gamma_.data() + s,
                                     gx + i, gy + i, gz + i);
@@ -211,9 +258,14 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
   }
   const Springs<S>& sp = model_->springs();
   exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
-    springProducts<S, kSystem>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),
-                               col(direction_, 1), col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data(),
-                               col(g_, 0), col(g_, 1), col(g_, 2));
+    if constexpr (kSystem) {
+      scaledSpringProducts<S>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(scaled_, 0),
+                              col(scaled_, 1), col(scaled_, 2), alpha_.data(), col(g_, 0), col(g_, 1), col(g_, 2));
+      return;
+    }
+    springProducts<S, false>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),
+                             col(direction_, 1), col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data(),
+                             col(g_, 0), col(g_, 1), col(g_, 2));
   });
   constexpr Index kBlock = ForceField<S>::kSinkBlock;
   exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
