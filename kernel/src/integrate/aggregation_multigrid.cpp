@@ -172,6 +172,7 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model, bool stenci
     l.x.assign(3 * nodes, 0.0);
     l.t.assign(3 * nodes, 0.0);
     l.saved.assign(3 * nodes, 0.0);
+    l.next.assign(3 * nodes, 0.0);
     l.g.assign(3 * l.edgeU.size(), 0.0);
     if (l.stencil) {
       l.stencilBlocks.assign(4 * 6 * nodes, 0.0);
@@ -408,12 +409,29 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
 }
 
 template <class S>
-void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x, std::vector<double>& y,
-                                      const std::vector<double>* minus, const Executor& exec) {
+void AggregationMultigrid<S>::residual(Level& level, const std::vector<double>& x, const std::vector<double>& rhs,
+                                       std::vector<double>& t, std::vector<double>* smoothed, bool fromZero,
+                                       const Executor& exec) {
   const Index n = level.n;
   const double* X = x.data();
-  double* Y = y.data();
+  const double* B = rhs.data();
+  double* T = t.data();
+  double* Z = smoothed ? smoothed->data() : nullptr;
   const Index grain = grainOf(n, 256);
+  // Slots [from, to): t = b - out (out = A x there, 3 rows `stride` apart), and if asked
+  // the smoothed iterate x + w D^-1 t (or w D^-1 t from zero). t may be b: each slot reads
+  // its own b before writing t.
+  auto finish = [&](Index from, Index to, const double* out, Index stride) {
+    for (int c = 0; c < 3; ++c)
+      for (Index a = from; a < to; ++a) T[c * n + a] = B[c * n + a] - out[c * stride + a - from];
+    if (Z)
+      for (Index a = from; a < to; ++a) {
+        const double ta[3] = {T[a], T[n + a], T[2 * n + a]};
+        double dz[3];
+        multiply(level.inverse[static_cast<size_t>(a)], ta, dz);
+        for (int c = 0; c < 3; ++c) Z[c * n + a] = fromZero ? kSmoothing * dz[c] : X[c * n + a] + kSmoothing * dz[c];
+      }
+  };
   if (level.stencil) {
     // Slots outside [first, last) are the ring's first and last rows (and one slot more):
     // no edge reaches them, and their product is 0.
@@ -422,34 +440,26 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
     // shared output lines would bounce them between the threads).
     exec.parallelFor(n, grain, [&](Index b, Index e) {
       constexpr Index kChunk = 256;
-      alignas(64) double out[3][kChunk];
+      alignas(64) double out[3 * kChunk];
       for (Index c0 = b; c0 < e; c0 += kChunk) {
         const Index c1 = std::min(e, c0 + kChunk);
         const Index lo = std::clamp(c0, first, last), hi = std::clamp(c1, first, last);
-        std::fill_n(&out[0][0], 3 * kChunk, 0.0);
+        std::fill_n(out, 3 * kChunk, 0.0);
         if (hi > lo) {
           const Index m = hi - lo, at = lo - c0;
-          stencilGround(m, n, level.groundBlocks.data() + lo, X + lo, X + n + lo, X + 2 * n + lo, out[0] + at,
-                        out[1] + at, out[2] + at);
+          stencilGround(m, n, level.groundBlocks.data() + lo, X + lo, X + n + lo, X + 2 * n + lo, out + at,
+                        out + kChunk + at, out + 2 * kChunk + at);
           for (int d = 0; d < 4; ++d)
             stencilDirection(m, n, level.offset[d], level.stencilBlocks.data() + d * 6 * n + lo, X + lo, X + n + lo,
-                             X + 2 * n + lo, out[0] + at, out[1] + at, out[2] + at);
+                             X + 2 * n + lo, out + at, out + kChunk + at, out + 2 * kChunk + at);
         }
-        for (int c = 0; c < 3; ++c) {
-          double* to = Y + c * n + c0;
-          if (minus) {
-            const double* from = minus->data() + c * n + c0;
-            for (Index a = 0; a < c1 - c0; ++a) to[a] = from[a] - out[c][a];
-          } else {
-            std::copy_n(out[c], c1 - c0, to);
-          }
-        }
+        finish(c0, c1, out, kChunk);
       }
     });
     return;
   }
-  // g_e = B_e (x_u - x_v) once per edge; then y_a = G_a x_a + sum of +-g over a's edges
-  // (+ on the edge's u side), or minus_a - that.
+  // g_e = B_e (x_u - x_v) once per edge; then (A x)_a = G_a x_a + sum of +-g over a's edges
+  // (+ on the edge's u side).
   const auto edges = static_cast<Index>(level.edgeU.size());
   const Index edgeGrain = grainOf(edges, 1024);
   exec.parallelFor(edges, edgeGrain, [&](Index b, Index e) {
@@ -473,7 +483,7 @@ void AggregationMultigrid<S>::product(Level& level, const std::vector<double>& x
         out[1] += sign * g[1];
         out[2] += sign * g[2];
       }
-      for (int c = 0; c < 3; ++c) Y[c * n + a] = minus ? (*minus)[static_cast<size_t>(c * n + a)] - out[c] : out[c];
+      finish(a, a + 1, out, 1);
     }
   });
 }
@@ -545,7 +555,7 @@ void AggregationMultigrid<S>::solveCoarsest() {
 
 template <class S>
 template <class Value>
-void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Executor& exec) {
+void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, bool smooth, const Executor& exec) {
   // b_a = the sum of the finer level's residual over a's members, in member order.
   const Index n = coarse.n;
   const Index grain = grainOf(n, 256);
@@ -558,84 +568,66 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, const Exe
         for (int c = 0; c < 3; ++c) sum[c] += value(i, c);
       }
       for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(c * n + a)] = sum[c];
+      if (smooth) {  // the coarse cycle's first sweep, from zero: x = w D^-1 b
+        double dz[3];
+        multiply(coarse.inverse[static_cast<size_t>(a)], sum, dz);
+        for (int c = 0; c < 3; ++c) coarse.x[static_cast<size_t>(c * n + a)] = kSmoothing * dz[c];
+      }
     }
   });
 }
 
 template <class S>
 void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
+  // On entry b holds the level's right-hand side and, unless it is solved densely, x its
+  // first sweep from zero, w D^-1 b (fused into the pass that wrote b).
   Level& level = levels_[k];
   const Index n = level.n;
   const Index grain = grainOf(n, 256);
-  // x = w D^-1 (b - A x) + x over [b, e), from the residual in t.
-  auto smooth = [&](bool fromZero) {
-    exec.parallelFor(n, grain, [&](Index b, Index e) {
-      const double* t = (fromZero ? level.b : level.t).data();
-      double* x = level.x.data();
-      for (Index a = b; a < e; ++a) {
-        const double ta[3] = {t[a], t[n + a], t[2 * n + a]};
-        double dz[3];
-        multiply(level.inverse[static_cast<size_t>(a)], ta, dz);
-        for (int c = 0; c < 3; ++c) x[c * n + a] = (fromZero ? 0.0 : x[c * n + a]) + kSmoothing * dz[c];
-      }
-    });
+  // A sweep from x: x += w D^-1 (b - A x), t = b - A x (fused: the new x into `next`).
+  auto sweep = [&] {
+    residual(level, level.x, level.b, level.t, &level.next, false, exec);
+    std::swap(level.x, level.next);
   };
-  auto residual = [&] { product(level, level.x, level.t, &level.b, exec); };
   if (k + 1 == levels_.size()) {
     if (denseCoarsest_) {
       solveCoarsest();
     } else {  // a level that would not coarsen further: a fixed number of sweeps (symmetric)
-      smooth(true);
-      for (int sweep = 0; sweep < 4; ++sweep) {
-        residual();
-        smooth(false);
-      }
+      for (int s = 0; s < 4; ++s) sweep();
     }
     return;
   }
-  smooth(true);
-  for (int sweep = 1; sweep < kCoarseSweeps; ++sweep) {
-    residual();
-    smooth(false);
-  }
-  residual();
+  for (int s = 1; s < kCoarseSweeps; ++s) sweep();
+  residual(level, level.x, level.b, level.t, nullptr, false, exec);
   Level& coarse = levels_[k + 1];
   restrictTo(
-      coarse, [&](Index i, int c) { return level.t[static_cast<size_t>(c * n + i)]; }, exec);
+      coarse, [&](Index i, int c) { return level.t[static_cast<size_t>(c * n + i)]; }, startsWithSweep(k + 1), exec);
   cycle(k + 1, exec);
   const bool exactBelow = k + 2 == levels_.size() && denseCoarsest_;
-  for (int again = 1; again < kCycles && !exactBelow; ++again) {
-    // Another pass on the coarse level for its remaining residual (a W-cycle for 2).
-    const Index cn = coarse.n;
-    const Index cg = grainOf(cn, 256);
-    product(coarse, coarse.x, coarse.t, &coarse.b, exec);
-    exec.parallelFor(cn, cg, [&](Index b, Index e) {
-      for (int c = 0; c < 3; ++c)
-        for (Index i = c * cn + b; i < c * cn + e; ++i) {
-          coarse.saved[static_cast<size_t>(i)] = coarse.x[static_cast<size_t>(i)];
-          coarse.b[static_cast<size_t>(i)] = coarse.t[static_cast<size_t>(i)];
-        }
-    });
+  const bool again = kCycles == 2 && !exactBelow;
+  if (again) {
+    // Another pass on the coarse level for its remaining residual (a W-cycle): b = b - A x
+    // in place and the pass's first sweep from zero into `next` (the coarse level is not
+    // solved densely here); x is kept in `saved`.
+    residual(coarse, coarse.x, coarse.b, coarse.b, &coarse.next, true, exec);
+    std::swap(coarse.saved, coarse.x);
+    std::swap(coarse.x, coarse.next);
     cycle(k + 1, exec);
-    exec.parallelFor(cn, cg, [&](Index b, Index e) {
-      for (int c = 0; c < 3; ++c)
-        for (Index i = c * cn + b; i < c * cn + e; ++i)
-          coarse.x[static_cast<size_t>(i)] += coarse.saved[static_cast<size_t>(i)];
-    });
   }
+  // Prolongation (with the W-cycle's kept solution added back): x += w_c P x_coarse.
   const Index cn = coarse.n;
   exec.parallelFor(n, grain, [&](Index b, Index e) {
     for (Index i = b; i < e; ++i) {
       const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
       if (a < 0) continue;
-      for (int c = 0; c < 3; ++c)
-        level.x[static_cast<size_t>(c * n + i)] += kOverCorrection * coarse.x[static_cast<size_t>(c * cn + a)];
+      for (int c = 0; c < 3; ++c) {
+        const auto at = static_cast<size_t>(c * cn + a);
+        const double correction = again ? coarse.x[at] + coarse.saved[at] : coarse.x[at];
+        level.x[static_cast<size_t>(c * n + i)] += kOverCorrection * correction;
+      }
     }
   });
-  for (int sweep = 0; sweep < kCoarseSweeps; ++sweep) {
-    residual();
-    smooth(false);
-  }
+  for (int s = 0; s < kCoarseSweeps; ++s) sweep();
 }
 
 template <class S>
@@ -667,7 +659,7 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
     jacobian.systemProduct(x_, makeSink<S>(residual), exec);
     Level& coarse = levels_.front();
     restrictTo(
-        coarse, [&](Index i, int c) { return static_cast<double>(t_(i, c)); }, exec);
+        coarse, [&](Index i, int c) { return static_cast<double>(t_(i, c)); }, startsWithSweep(0), exec);
     cycle(0, exec);
     const Index cn = coarse.n;
     exec.parallelFor(n_, block, [&](Index b, Index e) {

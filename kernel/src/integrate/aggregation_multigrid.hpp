@@ -34,6 +34,11 @@
 // the cycle is a symmetric positive definite operator, as CG needs. On the fine level a
 // sweep costs one product with A (SpringJacobian::systemProduct; the first sweep starts
 // from zero and needs none), so a cycle costs two fine products plus the coarse levels.
+// On the coarse levels each sweep is fused into the pass that computes its residual (the
+// new iterate goes to a second vector, swapped in), the first sweep from zero into the
+// restriction that writes the level's right-hand side, and the W-cycle's second
+// right-hand side into the residual pass before it: fewer passes over memory and fewer
+// parallel loops to wait for.
 //
 // Products on a coarse level: on a grid model, every level's nodes sit in a padded
 // rectangle (a ring of empty slots around the grid, and empty slots where all members are
@@ -122,8 +127,10 @@ class AggregationMultigrid {
     std::vector<double> stencilBlocks;  // (4 directions x 6 entries x n) edge blocks, 0 where none
     std::vector<double> groundBlocks;   // (6 entries x n) ground blocks, for the stencil product
     std::vector<SymmetricBlock> ground, edge, diagonal, inverse;
-    std::vector<double> g;               // (3 edges) B_e (x_u - x_v), the general product's
-    std::vector<double> b, x, t, saved;  // (3 n, axis-major: c n + a) right-hand side, solution, residual, kept
+    std::vector<double> g;  // (3 edges) B_e (x_u - x_v), the general product's
+    // (3 n each, axis-major: c n + a) right-hand side, solution, residual, the W-cycle's kept
+    // solution, and the next solution of a fused sweep (swapped with x).
+    std::vector<double> b, x, t, saved, next;
   };
   struct Link {  // a finer level's coupling, for building a coarser level
     Index u, v;
@@ -134,15 +141,19 @@ class AggregationMultigrid {
                    const std::vector<Index>& row, const std::vector<Index>& column, bool stencil) const;
   void assemble(Level& level, const Level* finer, const SpringJacobian<S>* jacobian, const Executor& exec);
   /// coarse.b = the restriction of the finer level's residual, value(i, c) (node i, axis c).
+  /// With `smooth`, also the coarse cycle's first sweep from zero: x = w D^-1 b.
   template <class Value>
-  void restrictTo(Level& coarse, Value&& value, const Executor& exec);
+  void restrictTo(Level& coarse, Value&& value, bool smooth, const Executor& exec);
+  /// Whether cycle(k) starts with a sweep from zero (every level but a densely solved one).
+  bool startsWithSweep(std::size_t k) const { return !(k + 1 == levels_.size() && denseCoarsest_); }
   void cycle(std::size_t k, const Executor& exec);
   /// Items per block of a pass over `count` nodes or edges: `grain`, or all of them on the
   /// calling thread below kParallelNodes (each pass is too short to share).
   static Index grainOf(Index count, Index grain) { return count > kParallelNodes ? grain : std::max<Index>(count, 1); }
-  /// y = A x on a level, or y = minus - A x.
-  void product(Level& level, const std::vector<double>& x, std::vector<double>& y, const std::vector<double>* minus,
-               const Executor& exec);
+  /// t = b - A x on a level (t may be b), and with `smoothed` the sweep x + w D^-1 t (or
+  /// w D^-1 t, fromZero) into *smoothed, in the same pass.
+  void residual(Level& level, const std::vector<double>& x, const std::vector<double>& b, std::vector<double>& t,
+                std::vector<double>* smoothed, bool fromZero, const Executor& exec);
   void factorCoarsest();
   void solveCoarsest();
 
