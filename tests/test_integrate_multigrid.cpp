@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -79,6 +80,15 @@ Eigen::MatrixXd denseOnFree(const Model<double>& model, Apply&& apply) {
 }
 
 double conditionNumber(const Eigen::VectorXd& eigenvalues) { return eigenvalues.maxCoeff() / eigenvalues.minCoeff(); }
+
+// A residual to precondition: noise of unit size on the free particles, 0 on pinned ones.
+Vec3Array<double> residualOnFree(const Model<double>& model, std::uint32_t seed) {
+  Vec3Array<double> r = Vec3Array<double>::Zero(model.particleCount(), 3);
+  addNoise<double>(r, 1.0, seed);
+  for (Index i = 0; i < model.particleCount(); ++i)
+    if (model.isPinned(i)) r.row(i).setZero();
+  return r;
+}
 
 }  // namespace
 
@@ -180,10 +190,7 @@ TEST(AggregationMultigrid, TheCycleIsBitwiseTheSameOnOneAndTwoThreads) {
   const Index n = model.particleCount();
   Vec3Array<double> x = flag.state.x * 1.05;
   addNoise<double>(x, 0.002, 3);
-  Vec3Array<double> r = Vec3Array<double>::Zero(n, 3);
-  addNoise<double>(r, 1.0, 4);
-  for (Index i = 0; i < n; ++i)
-    if (model.isPinned(i)) r.row(i).setZero();
+  const Vec3Array<double> r = residualOnFree(model, 4);
   Vec3Array<double> z[2];
   std::vector<double> partials[2];
   for (const int threads : {1, 2}) {
@@ -222,10 +229,7 @@ TEST(AggregationMultigrid, TheGridStencilProductAgreesWithTheGeneralOne) {
   const Index n = model.particleCount();
   Vec3Array<double> x = cloth.state.x * 1.04;
   addNoise<double>(x, 0.002, 5);
-  Vec3Array<double> r = Vec3Array<double>::Zero(n, 3);
-  addNoise<double>(r, 1.0, 6);
-  for (Index i = 0; i < n; ++i)
-    if (model.isPinned(i)) r.row(i).setZero();
+  const Vec3Array<double> r = residualOnFree(model, 6);
   const Executor exec(2);
   SpringJacobian<double> jacobian(model);
   jacobian.linearize(x, 1.0 / 60, exec, 0.02);

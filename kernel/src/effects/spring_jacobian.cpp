@@ -70,8 +70,17 @@ template <class S, bool kDamping>
   }
 }
 
-// The system product's springs with v = sqrt(beta + gamma) d: g = alpha u + v (v . u), the
-// same block alpha I + (beta + gamma) d d^T from four numbers a spring instead of six.
+// The system product's spring block with v = sqrt(beta + gamma) d: g = alpha u + v (v . u),
+// the same block alpha I + (beta + gamma) d d^T from four numbers a spring instead of six.
+template <class S>
+inline void scaledBlock(S ux, S uy, S uz, S vx, S vy, S vz, S alpha, S& gx, S& gy, S& gz) {
+  const S along = vx * ux + vy * uy + vz * uz;
+  gx = alpha * ux + along * vx;
+  gy = alpha * uy + along * vy;
+  gz = alpha * uz + along * vz;
+}
+
+// Springs [b, e) of the system product (scaledBlock).
 template <class S>
 [[gnu::noinline]] void scaledSpringProducts(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
                                             const S* __restrict px, const S* __restrict py, const S* __restrict pz,
@@ -80,11 +89,7 @@ template <class S>
                                             S* __restrict gz) {
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
-    const S ux = px[i] - px[j], uy = py[i] - py[j], uz = pz[i] - pz[j];
-    const S along = vx[s] * ux + vy[s] * uy + vz[s] * uz;
-    gx[s] = alpha[s] * ux + along * vx[s];
-    gy[s] = alpha[s] * uy + along * vy[s];
-    gz[s] = alpha[s] * uz + along * vz[s];
+    scaledBlock(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], vx[s], vy[s], vz[s], alpha[s], gx[s], gy[s], gz[s]);
   }
 }
 
@@ -96,11 +101,7 @@ template <class S>
                                              S* __restrict gy, S* __restrict gz) {
   for (Index t = 0; t < count; ++t) {
     const Index j = t + offset;
-    const S ux = px[t] - px[j], uy = py[t] - py[j], uz = pz[t] - pz[j];
-    const S along = vx[t] * ux + vy[t] * uy + vz[t] * uz;
-    gx[t] = alpha[t] * ux + along * vx[t];
-    gy[t] = alpha[t] * uy + along * vy[t];
-    gz[t] = alpha[t] * uz + along * vz[t];
+    scaledBlock(px[t] - px[j], py[t] - py[j], pz[t] - pz[j], vx[t], vy[t], vz[t], alpha[t], gx[t], gy[t], gz[t]);
   }
 }
 

@@ -118,7 +118,7 @@ class AggregationMultigrid {
     // A grid level: node (r, c) of a gridWidth-wide grid is slot (r + 1) * stride + c + 1,
     // stride = gridWidth + 2, with a ring of empty slots around it; row and column per slot
     // (-1 on the ring). Its edges then all join a slot to the next one in one of the four
-    // directions of kStencil, and the product runs through the 9-point stencil.
+    // directions of `offset`, and the product runs through the 9-point stencil.
     Index gridWidth = 0, stride = 0;
     std::vector<Index> row, column;
     bool stencil = false;
