@@ -436,8 +436,8 @@ void AggregationMultigrid<S>::residual(Level& level, const std::vector<double>& 
     // Slots outside [first, last) are the ring's first and last rows (and one slot more):
     // no edge reaches them, and their product is 0.
     const Index first = level.stride + 1, last = n - level.stride - 1;
-    // Each block sums into local rows and writes every output once (several passes over
-    // shared output lines would bounce them between the threads).
+    // Each block sums into local rows and writes every output once, rather than five
+    // passes over output lines it shares with the neighbouring blocks.
     exec.parallelFor(n, grain, [&](Index b, Index e) {
       constexpr Index kChunk = 256;
       alignas(64) double out[3 * kChunk];
