@@ -53,20 +53,26 @@ template <class S>
   }
 }
 
-// Springs [b, e): g = alpha u + (beta [+ gamma]) d (d . u), u = p_a - p_b.
-template <class S, bool kDamping>
+// The stiffness product's spring block (no damping): g = alpha u + beta d (d . u).
+template <class S>
+inline void stiffnessBlock(S ux, S uy, S uz, S dx, S dy, S dz, S alpha, S beta, S& gx, S& gy, S& gz) {
+  const S along = beta * (dx * ux + dy * uy + dz * uz);
+  gx = alpha * ux + along * dx;
+  gy = alpha * uy + along * dy;
+  gz = alpha * uz + along * dz;
+}
+
+// Springs [b, e) of the stiffness product (stiffnessBlock), u = p_a - p_b.
+template <class S>
 [[gnu::noinline]] void springProducts(Index b, Index e, const Index* __restrict A, const Index* __restrict B,
                                       const S* __restrict px, const S* __restrict py, const S* __restrict pz,
                                       const S* __restrict dx, const S* __restrict dy, const S* __restrict dz,
-                                      const S* __restrict alpha, const S* __restrict beta, const S* __restrict gamma,
-                                      S* __restrict gx, S* __restrict gy, S* __restrict gz) {
+                                      const S* __restrict alpha, const S* __restrict beta, S* __restrict gx,
+                                      S* __restrict gy, S* __restrict gz) {
   for (Index s = b; s < e; ++s) {
     const Index i = A[s], j = B[s];
-    const S ux = px[i] - px[j], uy = py[i] - py[j], uz = pz[i] - pz[j];
-    const S along = (kDamping ? beta[s] + gamma[s] : beta[s]) * (dx[s] * ux + dy[s] * uy + dz[s] * uz);
-    gx[s] = alpha[s] * ux + along * dx[s];
-    gy[s] = alpha[s] * uy + along * dy[s];
-    gz[s] = alpha[s] * uz + along * dz[s];
+    stiffnessBlock(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], dx[s], dy[s], dz[s], alpha[s], beta[s], gx[s], gy[s],
+                   gz[s]);
   }
 }
 
@@ -105,21 +111,17 @@ template <class S>
   }
 }
 
-// count springs of one grid family starting at consecutive particles: u = p[t] - p[t + offset],
-// coefficients of springs [s0, s0 + count) (pointers already offset), g[t] as above.
-template <class S, bool kDamping>
+// The same for count springs of one grid family starting at consecutive particles:
+// u = p[t] - p[t + offset], coefficients of springs [s0, s0 + count) (pointers offset).
+template <class S>
 [[gnu::noinline]] void stridedProducts(Index count, Index offset, const S* __restrict px, const S* __restrict py,
                                        const S* __restrict pz, const S* __restrict dx, const S* __restrict dy,
                                        const S* __restrict dz, const S* __restrict alpha, const S* __restrict beta,
-                                       const S* __restrict gamma, S* __restrict gx, S* __restrict gy,
-                                       S* __restrict gz) {
+                                       S* __restrict gx, S* __restrict gy, S* __restrict gz) {
   for (Index t = 0; t < count; ++t) {
     const Index j = t + offset;
-    const S ux = px[t] - px[j], uy = py[t] - py[j], uz = pz[t] - pz[j];
-    const S along = (kDamping ? beta[t] + gamma[t] : beta[t]) * (dx[t] * ux + dy[t] * uy + dz[t] * uz);
-    gx[t] = alpha[t] * ux + along * dx[t];
-    gy[t] = alpha[t] * uy + along * dy[t];
-    gz[t] = alpha[t] * uz + along * dz[t];
+    stiffnessBlock(px[t] - px[j], py[t] - py[j], pz[t] - pz[j], dx[t], dy[t], dz[t], alpha[t], beta[t], gx[t], gy[t],
+                   gz[t]);
   }
 }
 
@@ -226,10 +228,9 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
                                    col(p, 2) + i, col(scaled_, 0) + s, col(scaled_, 1) + s, col(scaled_, 2) + s,
                                    alpha_.data() + s, gx + i, gy + i, gz + i);
         else
-          stridedProducts<S, false>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
-                                    col(p, 2) + i, col(direction_, 0) + s, col(direction_, 1) + s,
-                                    col(direction_, 2) + s, alpha_.data() + s, beta_.data() + s, gamma_.data() + s,
-                                    gx + i, gy + i, gz + i);
+          stridedProducts<S>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i, col(p, 2) + i,
+                             col(direction_, 0) + s, col(direction_, 1) + s, col(direction_, 2) + s, alpha_.data() + s,
+                             beta_.data() + s, gx + i, gy + i, gz + i);
       }
     }
   });
@@ -264,9 +265,9 @@ void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>
                               col(scaled_, 1), col(scaled_, 2), alpha_.data(), col(g_, 0), col(g_, 1), col(g_, 2));
       return;
     }
-    springProducts<S, false>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),
-                             col(direction_, 1), col(direction_, 2), alpha_.data(), beta_.data(), gamma_.data(),
-                             col(g_, 0), col(g_, 1), col(g_, 2));
+    springProducts<S>(b, e, sp.a.data(), sp.b.data(), col(p, 0), col(p, 1), col(p, 2), col(direction_, 0),
+                      col(direction_, 1), col(direction_, 2), alpha_.data(), beta_.data(), col(g_, 0), col(g_, 1),
+                      col(g_, 2));
   });
   constexpr Index kBlock = ForceField<S>::kSinkBlock;
   exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
