@@ -29,16 +29,18 @@
 // the matrix are the identity, and their springs to free particles move to the right.
 //
 // The solve. The matrix is symmetric positive definite; it is factorised once per time
-// step h (Eigen's SimplicialLDLT with an approximate-minimum-degree ordering, in double for
-// both precisions) and kept; the factors of the two most recently used steps are cached,
-// so the collision pipeline's halved chunks do not refactorise at every change. A factorisation
-// allocates and is counted in StepWork::factorizations; a step with a cached h allocates
-// nothing. The triangular solves are weft's own, over the factor's columns with the three
-// coordinates interleaved, so that the factor is read once per solve instead of three times
-// (2.3x faster than Eigen's solve with three right-hand sides at 128^2). They run on one
-// thread, in one order: the result is the same for any thread count. The factor cache and
-// the solves are SpringLaplacianSolver's (spring_laplacian_solver.hpp, with theta = 1), which
-// implicit Euler's projective preconditioner shares.
+// step h (Eigen's SimplicialLDLT, in double for both precisions, on an ordering found once:
+// one level of nested dissection, each part in approximate-minimum-degree order) and kept;
+// the factors of the two most recently used steps are cached, so the collision pipeline's
+// halved chunks do not refactorise at every change. A factorisation allocates and is counted
+// in StepWork::factorizations; a step with a cached h allocates nothing. The triangular
+// solves are weft's own, in gather form with the three coordinates interleaved, so that the
+// factor is read once per solve (2.3x faster than Eigen's solve with three right-hand sides
+// at 128^2 even before the gather form); the dissection's two parts are two tasks that never
+// read each other's unknowns, and each unknown is summed in one fixed order, so the result
+// is the same for any thread count. The factor cache and the solves are
+// SpringLaplacianSolver's (spring_laplacian_solver.hpp, with theta = 1), which implicit
+// Euler's projective preconditioner shares.
 //
 // Convergence. Each iteration (a local step, a gather, a solve) is a fixed-point step
 // towards backward Euler (without damping it lowers the backward-Euler energy: Liu et
@@ -153,7 +155,7 @@ class Projective final : public Integrator<S> {
           for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c)) + static_cast<double>(f[c]);
         }
       });
-      global_.solveBuffer();
+      global_.solveBuffer(exec);
       const bool last = k + 1 == iterations_;
       exec.parallelForBlocks(n_, kGrain, [&](Index block, Index b, Index e) {
         if (last)
@@ -222,35 +224,47 @@ class Projective final : public Integrator<S> {
     const Springs<S>& sp = model_->springs();
     const S h2 = h * h;
     exec.parallelFor(sp.count(), kSpringGrain, [&](Index b, Index e) {
-      for (Index s = b; s < e; ++s) {
-        const Index pa = sp.a[s], pb = sp.b[s];
-        S d[3], e0[3], u[3];
-        for (int c = 0; c < 3; ++c) {
-          e0[c] = x0(pa, c) - x0(pb, c);
-          u[c] = displacement_(pa, c) - displacement_(pb, c);
-          d[c] = e0[c] + u[c];
-        }
-        const S len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        const bool hasDirection = len2 > std::numeric_limits<S>::min();
-        const S invLen = (hasDirection ? S(1) : S(0)) / (hasDirection ? std::sqrt(len2) : S(1));
-        S along = 0;
-        for (int c = 0; c < 3; ++c) {
-          d[c] *= invLen;  // unit direction (zero for a spring of zero length)
-          along += d[c] * u[c];
-        }
-        const S ks = h2 * sp.stiffness[s];
-        const S rest = sp.restLength[s];
-        const S viscous = h * sp.damping[s];
-        const S coupling = ks + viscous;
-        const bool aFree = free_[pa] != S(0), bFree = free_[pb] != S(0);
-        for (int c = 0; c < 3; ++c) {
-          S t = ks * (rest * d[c] - e0[c]) + viscous * (u[c] - along * d[c]);
-          if (aFree && !bFree) t += coupling * displacement_(pb, c);
-          if (bFree && !aFree) t -= coupling * displacement_(pa, c);
-          springTerm_(s, c) = t;
-        }
-      }
+      localSprings(b, e, h2, h, sp.a.data(), sp.b.data(), sp.stiffness.data(), sp.restLength.data(), sp.damping.data(),
+                   free_.data(), x0.data(), displacement_.data(), n_, springTerm_.data(), sp.count());
     });
+  }
+
+  /// The local step over springs [b, e) on raw arrays (coordinate-major: x(i, c) at
+  /// x[c n + i]), branch-free so that it vectorises (with gathers) where the machine has
+  /// them: a pinned endpoint's term is weighted by the free flags instead of tested.
+  static void localSprings(Index b, Index e, S h2, S h, const Index* __restrict pa, const Index* __restrict pb,
+                           const S* __restrict stiffness, const S* __restrict restLength, const S* __restrict damping,
+                           const S* __restrict isFree, const S* __restrict x0, const S* __restrict dx, Index n,
+                           S* __restrict term, Index m) {
+    for (Index s = b; s < e; ++s) {
+      const Index ia = pa[s], ib = pb[s];
+      S d[3], e0[3], u[3];
+      for (int c = 0; c < 3; ++c) {
+        e0[c] = x0[c * n + ia] - x0[c * n + ib];
+        u[c] = dx[c * n + ia] - dx[c * n + ib];
+        d[c] = e0[c] + u[c];
+      }
+      const S len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      const bool hasDirection = len2 > std::numeric_limits<S>::min();
+      const S invLen = (hasDirection ? S(1) : S(0)) / std::sqrt(hasDirection ? len2 : S(1));
+      S along = 0;
+      for (int c = 0; c < 3; ++c) {
+        d[c] *= invLen;  // unit direction (zero for a spring of zero length)
+        along += d[c] * u[c];
+      }
+      const S ks = h2 * stiffness[s];
+      const S rest = restLength[s];
+      const S viscous = h * damping[s];
+      const S coupling = ks + viscous;
+      const S fa = isFree[ia], fb = isFree[ib];
+      const S toA = coupling * fa * (S(1) - fb), toB = coupling * fb * (S(1) - fa);  // one pinned endpoint
+      for (int c = 0; c < 3; ++c) {
+        S t = ks * (rest * d[c] - e0[c]) + viscous * (u[c] - along * d[c]);
+        t += toA * dx[c * n + ib];
+        t -= toB * dx[c * n + ia];
+        term[c * m + s] = t;
+      }
+    }
   }
 
   const Model<S>* model_;

@@ -7,13 +7,24 @@
 // by projective dynamics as its global matrix (projective.cpp); smaller theta trades the stiffness P assigns across
 // slack springs (where the Hessian has none) against what it assigns along them.
 //
-// P is factorised (Eigen's SimplicialLDLT with an approximate-minimum-degree ordering
-// found once, in double for both precisions) per (h, c); the two most recently used
-// factors are kept, so a step with a cached h allocates nothing. The triangular solves run
-// on one thread over the factor's columns, the three coordinates interleaved; the gather
-// into the factor's order and the scatter back are parallel passes over particle blocks.
-// The scatter also forms r . z per block, so the result is the same for any thread count.
-// The file is compiled without floating-point contraction (see kernel/CMakeLists.txt).
+// P is factorised (Eigen's SimplicialLDLT, in double for both precisions) per (h, c); the two
+// most recently used factors are kept, so a step with a cached h allocates nothing. The
+// ordering is found once: approximate minimum degree, then a post-order of its elimination
+// tree, so that every subtree of the tree is a contiguous range of the factor's columns.
+//
+// The triangular solves are weft's own, both in gather form (each unknown sums its terms in
+// registers and is written once; scattering into later rows instead chains every update of
+// a row through a store and a load, 2-4x slower), the three coordinates interleaved so the
+// factor is read once per solve. L y = b runs over the rows of L (a second copy of the
+// factor, transposed), L^T x = D^-1 y over its columns, each column's terms farthest first,
+// so that the sum waits for the unknown just computed only at its end. The columns split
+// into two independent ranges (unions of subtrees: neither reads the other's unknowns) and
+// a top range (the separator near the root): the two ranges run as two tasks, the top range
+// after (forward) or before (backward) them. Every unknown is summed in the same order
+// whichever thread runs its task, so the result is the same for any thread count. The
+// gather into the factor's order and the scatter back are parallel passes over particle
+// blocks; the scatter also forms r . z per block. The file is compiled without
+// floating-point contraction (see kernel/CMakeLists.txt).
 #pragma once
 
 #include <Eigen/SparseCore>
@@ -47,18 +58,27 @@ class SpringLaplacianSolver {
   const double* buffer() const { return work_.data(); }
   Index position(Index i) const { return position_[static_cast<size_t>(i)]; }
   /// buffer() = (L D L^T)^-1 buffer() with the factor prepare() made current.
-  void solveBuffer() { solve(*current_); }
+  void solveBuffer(const Executor& exec) { solve(*current_, exec); }
+
+  /// The column ranges of the current factor's solve: [0, split[0]) and [split[0],
+  /// split[1]) run as two tasks, [split[1], n) alone (for tests and benchmarks).
+  std::array<Index, 2> split() const { return current_ != nullptr ? current_->split : std::array<Index, 2>{0, 0}; }
 
  private:
   struct Factor {
     double h = 0;  // 0: empty slot
     double drag = -1;
     std::uint64_t lastUse = 0;
-    Eigen::SparseMatrix<double> lower;  // strictly lower triangle of L (unit diagonal), columns
+    Eigen::SparseMatrix<double> lower;  // strictly lower triangle of L (unit diagonal), by columns
+    Eigen::SparseMatrix<double> rows;   // the same, by rows (L^T by columns)
     Eigen::VectorXd inverseD;           // 1 / D
+    std::array<Index, 2> split{0, 0};   // [0, split[0]) and [split[0], split[1]): independent
+    std::vector<int> cuts;              // per top row: where its first and second task's terms end
   };
   Eigen::SparseMatrix<double> assemble(double h, double drag) const;
-  void solve(const Factor& f);
+  void solve(const Factor& f, const Executor& exec);
+  static std::array<Index, 2> splitColumns(const Eigen::SparseMatrix<double>& lower);
+  static bool independent(const Eigen::SparseMatrix<double>& lower, std::array<Index, 2> split);
 
   const Model<S>* model_;
   double theta_;
@@ -68,6 +88,8 @@ class SpringLaplacianSolver {
   std::vector<int> position_;        // particle -> row in the factor's order
   std::vector<int> inversePosition_;
   std::vector<double> work_;  // (3 n) interleaved right-hand side / solution
+  std::array<Index, 2> partition_{0, 0};  // the dissection's two parts, when found
+  std::vector<double> border_;            // per top row, 2 x 3: each task's share of its sum
   std::array<Factor, 2> cache_;
   const Factor* current_ = nullptr;
   std::uint64_t useClock_ = 0;
