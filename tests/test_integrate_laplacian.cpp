@@ -95,11 +95,11 @@ Eigen::MatrixXd solveWith(detail::SpringLaplacianSolver<double>& solver, const E
                           const Executor& exec) {
   const Index n = rhs.rows();
   for (Index i = 0; i < n; ++i)
-    for (Index c = 0; c < 3; ++c) solver.buffer()[3 * solver.position(i) + c] = rhs(i, c);
+    for (Index c = 0; c < 3; ++c) solver.buffer()[solver.offset(i) + c] = rhs(i, c);
   solver.solveBuffer(exec);
   Eigen::MatrixXd x(n, 3);
   for (Index i = 0; i < n; ++i)
-    for (Index c = 0; c < 3; ++c) x(i, c) = solver.buffer()[3 * solver.position(i) + c];
+    for (Index c = 0; c < 3; ++c) x(i, c) = solver.buffer()[solver.offset(i) + c];
   return x;
 }
 

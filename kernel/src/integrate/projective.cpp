@@ -93,7 +93,7 @@ class Projective final : public Integrator<S> {
     work.substeps = 1;
     // The global matrix's factor for this h and drag: cached, or factorised now (allocates).
     if (global_.prepare(static_cast<double>(h), forces.effects().drag)) ++work.factorizations;
-    double* const permuted = global_.buffer();  // (3 n) right-hand side / solution, factor order
+    double* const permuted = global_.buffer();  // right-hand side / solution, factor order (offset(i))
     const ScalarArray<S>& mass = model_->mass();
     const ScalarArray<S>& w = model_->inverseMass();
     const S drag = static_cast<S>(forces.effects().drag);
@@ -145,7 +145,7 @@ class Projective final : public Integrator<S> {
       // ordering with the coordinates interleaved.
       exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
         for (Index i = b; i < e; ++i) {
-          double* out = permuted + 3 * global_.position(i);
+          double* out = permuted + global_.offset(i);
           if (free_[i] == S(0)) {
             for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c));
             continue;
@@ -162,7 +162,7 @@ class Projective final : public Integrator<S> {
           finish(x0, v0, h, x1, v1, block, b, e);
         else
           for (Index i = b; i < e; ++i) {
-            const double* in = permuted + 3 * global_.position(i);
+            const double* in = permuted + global_.offset(i);
             for (int c = 0; c < 3; ++c) displacement_(i, c) = static_cast<S>(in[c]);
           }
       });
@@ -201,7 +201,7 @@ class Projective final : public Integrator<S> {
     const double invH = 1.0 / static_cast<double>(h);
     double move = 0, moved = 0;
     for (Index i = b; i < e; ++i) {
-      const double* in = global_.buffer() + 3 * global_.position(i);
+      const double* in = global_.buffer() + global_.offset(i);
       const bool isFree = free_[i] != S(0);
       for (int c = 0; c < 3; ++c) {
         move = std::max(move, std::abs(in[c] - static_cast<double>(displacement_(i, c))));

@@ -53,15 +53,18 @@ class SpringLaplacianSolver {
   void apply(const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials, Index block, const Executor& exec);
 
   /// The solve on the solver's own buffer, for callers that gather and scatter themselves
-  /// (projective dynamics): (3 n) doubles, particle i's x, y, z at 3 position(i).
+  /// (projective dynamics): (4 n) doubles, particle i's x, y, z at offset(i) + 0, 1, 2 (the
+  /// fourth of each row is a pad that must stay 0).
   double* buffer() { return work_.data(); }
   const double* buffer() const { return work_.data(); }
-  Index position(Index i) const { return position_[static_cast<size_t>(i)]; }
+  Index offset(Index i) const { return 4 * static_cast<Index>(position_[static_cast<size_t>(i)]); }
   /// buffer() = (L D L^T)^-1 buffer() with the factor prepare() made current.
   void solveBuffer(const Executor& exec) { solve(*current_, exec); }
 
   /// The column ranges of the current factor's solve: [0, split[0]) and [split[0],
   /// split[1]) run as two tasks, [split[1], n) alone (for tests and benchmarks).
+  /// Entries of the current factor's strict lower triangle (0 before prepare()).
+  Index factorEntries() const { return current_ != nullptr ? static_cast<Index>(current_->lower.nonZeros()) : 0; }
   std::array<Index, 2> split() const { return current_ != nullptr ? current_->split : std::array<Index, 2>{0, 0}; }
 
  private:
@@ -87,9 +90,9 @@ class SpringLaplacianSolver {
   std::vector<unsigned char> free_;  // 1 for free particles
   std::vector<int> position_;        // particle -> row in the factor's order
   std::vector<int> inversePosition_;
-  std::vector<double> work_;  // (3 n) interleaved right-hand side / solution
+  std::vector<double> work_;  // (4 n) interleaved right-hand side / solution, a zero pad per row
   std::array<Index, 2> partition_{0, 0};  // the dissection's two parts, when found
-  std::vector<double> border_;            // per top row, 2 x 3: each task's share of its sum
+  std::vector<double> border_;            // per top row, 2 x 4: each task's share of its sum
   std::array<Factor, 2> cache_;
   const Factor* current_ = nullptr;
   std::uint64_t useClock_ = 0;
