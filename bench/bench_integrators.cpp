@@ -272,8 +272,8 @@ void BM_Projective_Solve(benchmark::State& st) {
   st.counters["allocs_per_solve"] = static_cast<double>(weftbench::allocationCount() - allocationsBefore) /
                                     static_cast<double>(std::max<std::int64_t>(solves, 1));
   st.counters["factor_entries"] = static_cast<double>(solver.factorEntries());
-  st.counters["entries_per_second"] =
-      benchmark::Counter(2.0 * static_cast<double>(solver.factorEntries()), benchmark::Counter::kIsIterationInvariantRate);
+  st.counters["entries_per_second"] = benchmark::Counter(2.0 * static_cast<double>(solver.factorEntries()),
+                                                         benchmark::Counter::kIsIterationInvariantRate);
 }
 BENCHMARK(BM_Projective_Solve)
     ->ArgNames({"size", "threads"})

@@ -72,8 +72,7 @@ std::vector<Case> cases() {
 Eigen::SparseMatrix<double> assembled(const Model<double>& model, double theta, double h, double drag) {
   const Index n = model.particleCount();
   std::vector<Eigen::Triplet<double>> entries;
-  for (Index i = 0; i < n; ++i)
-    entries.emplace_back(i, i, model.isPinned(i) ? 1.0 : model.mass()[i] + h * drag);
+  for (Index i = 0; i < n; ++i) entries.emplace_back(i, i, model.isPinned(i) ? 1.0 : model.mass()[i] + h * drag);
   const Springs<double>& sp = model.springs();
   for (Index s = 0; s < sp.count(); ++s) {
     const Index a = sp.a[s], b = sp.b[s];

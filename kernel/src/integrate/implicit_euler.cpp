@@ -14,8 +14,8 @@
 // projective dynamics' matrix per iteration, after that pass). Measured on the 128^2 flag
 // (docs/integrators.md): block-Jacobi takes 30 % fewer iterations than Jacobi at 1/60 s
 // for the same cost each; the projective one 53 % fewer, but its solve (two tasks over a
-// dissection) costs several iterations, so it is slower per step. The force f0 includes everything the ForceField computes (springs,
-// gravity); only the springs enter the Jacobian.
+// dissection) costs several iterations, so it is slower per step. The force f0 includes everything the ForceField
+// computes (springs, gravity); only the springs enter the Jacobian.
 //
 // Dot products are reduced deterministically: one partial per block of
 // ForceField::kSinkBlock particles (the blocks of every pass here), accumulated in double

@@ -144,7 +144,8 @@ std::vector<int> bisect(const Eigen::SparseMatrix<double>& lower) {
   if (part[static_cast<size_t>(big.front())] < 0) return {};
   std::array<size_t, 2> sizes{0, 0};
   for (int i = 0; i < n; ++i)
-    if (part[static_cast<size_t>(i)] == 0 || part[static_cast<size_t>(i)] == 1) ++sizes[static_cast<size_t>(part[static_cast<size_t>(i)])];
+    if (part[static_cast<size_t>(i)] == 0 || part[static_cast<size_t>(i)] == 1)
+      ++sizes[static_cast<size_t>(part[static_cast<size_t>(i)])];
   for (size_t c = 0; c < components.size(); ++c) {
     if (c == largest) continue;
     const int side = sizes[0] <= sizes[1] ? 0 : 1;
@@ -335,7 +336,7 @@ std::array<Index, 2> SpringLaplacianSolver<S>::splitColumns(const Eigen::SparseM
         best = {roots[k] + 1, b};
       }
     }
-    if (top > 0.5 * total) break;  // the top range alone costs more than any gain left
+    if (top > 0.5 * total) break;     // the top range alone costs more than any gain left
     const Index last = roots.back();  // == b - 1
     roots.pop_back();
     for (Index c : children[static_cast<size_t>(last)]) roots.push_back(c);

@@ -90,7 +90,7 @@ class SpringLaplacianSolver {
   std::vector<unsigned char> free_;  // 1 for free particles
   std::vector<int> position_;        // particle -> row in the factor's order
   std::vector<int> inversePosition_;
-  std::vector<double> work_;  // (4 n) interleaved right-hand side / solution, a zero pad per row
+  std::vector<double> work_;              // (4 n) interleaved right-hand side / solution, a zero pad per row
   std::array<Index, 2> partition_{0, 0};  // the dissection's two parts, when found
   std::vector<double> border_;            // per top row, 2 x 4: each task's share of its sum
   std::array<Factor, 2> cache_;
