@@ -2,13 +2,12 @@
 // (kernel/src/integrate/spring_laplacian_solver.cpp), projective dynamics' global step and
 // implicit Euler's projective preconditioner: its two-task triangular solves give P^-1 b
 // (checked against the matrix assembled here from the model), on grids, triangle meshes,
-// ropes, pinned and disconnected models, bitwise the same on 1 and 2 threads, and the
-// grid's columns split into two balanced tasks with a small serial top.
+// ropes, pinned and disconnected models, bitwise the same on 1 and 2 threads; a grid's
+// columns split into two balanced tasks with a small separator, two separate cloths into
+// one task each.
 #include <gtest/gtest.h>
 
 #include <Eigen/SparseCore>
-#include <algorithm>
-#include <cmath>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -38,23 +37,27 @@ ModelAndState<double> twoRopes(Index k) {
   return b.build();
 }
 
-ModelAndState<double> meshCloth(Index k) {
-  TriangleMesh mesh;
-  for (Index r = 0; r < k; ++r)
-    for (Index c = 0; c < k; ++c)
-      mesh.vertices.push_back(Vec3d(0.05 * static_cast<double>(c), 0, 0.05 * static_cast<double>(r)));
-  for (Index r = 0; r + 1 < k; ++r)
-    for (Index c = 0; c + 1 < k; ++c) {
-      const Index a = r * k + c;
-      mesh.triangles.push_back({a, a + 1, a + k + 1});
-      mesh.triangles.push_back({a, a + k + 1, a + k});
-    }
+// `sheets` triangulated (k x k)-vertex sheets side by side, sharing no spring.
+ModelAndState<double> meshCloth(Index k, int sheets = 1) {
   ModelBuilder<double> b;
-  ClothMeshSpec spec;
-  spec.structural = {4000, 0.05};
-  addClothMesh(b, mesh, spec);
-  b.pin(0);
-  b.pin(k - 1);
+  for (int sheet = 0; sheet < sheets; ++sheet) {
+    TriangleMesh mesh;
+    for (Index r = 0; r < k; ++r)
+      for (Index c = 0; c < k; ++c)
+        mesh.vertices.push_back(Vec3d(0.05 * static_cast<double>(c) + 2.0 * sheet, 0, 0.05 * static_cast<double>(r)));
+    for (Index r = 0; r + 1 < k; ++r)
+      for (Index c = 0; c + 1 < k; ++c) {
+        const Index a = r * k + c;
+        mesh.triangles.push_back({a, a + 1, a + k + 1});
+        mesh.triangles.push_back({a, a + k + 1, a + k});
+      }
+    ClothMeshSpec spec;
+    spec.structural = {4000, 0.05};
+    const Index first = b.particleCount();
+    addClothMesh(b, mesh, spec);
+    b.pin(first);
+    b.pin(first + k - 1);
+  }
   return b.build();
 }
 
@@ -64,6 +67,8 @@ std::vector<Case> cases() {
   out.push_back({"triangle mesh 17x17", meshCloth(17)});
   out.push_back({"rope of 50", makeRope<double>(50)});
   out.push_back({"two ropes, one pinned end", twoRopes(25)});
+  out.push_back({"two triangle meshes 30x30", meshCloth(30, 2)});
+  out.push_back({"grid flag 64x64 (two tasks)", makeFlag<double>(64)});
   return out;
 }
 
@@ -130,23 +135,47 @@ TEST(SpringLaplacianSolver, IsBitwiseTheSameOnOneAndTwoThreads) {
     const Eigen::MatrixXd rhs = Eigen::MatrixXd::Random(model.particleCount(), 3);
     const Executor one(1), two(2);
     const Eigen::MatrixXd x1 = solveWith(solver, rhs, one);
+    const Eigen::MatrixXd residual = assembled(model, 0.5, 1.0 / 100, 0.0) * x1 - rhs;
+    EXPECT_LT(residual.cwiseAbs().maxCoeff(), 1e-10 * rhs.cwiseAbs().maxCoeff());
     for (int run = 0; run < 5; ++run) {
       const Eigen::MatrixXd x2 = solveWith(solver, rhs, two);
       ASSERT_EQ(0, std::memcmp(x1.data(), x2.data(), sizeof(double) * static_cast<size_t>(x1.size())));
     }
+    for (Index i = 0; i < model.particleCount(); ++i)  // each row's fourth entry is a pad
+      ASSERT_EQ(solver.buffer()[solver.offset(i) + 3], 0.0);
   }
 }
 
-TEST(SpringLaplacianSolver, SplitsAGridIntoTwoBalancedTasksAndASmallTop) {
+TEST(SpringLaplacianSolver, SplitsAGridIntoTwoBalancedTasksAndASmallSeparator) {
   const ModelAndState<double> flag = makeFlag<double>(64);
   detail::SpringLaplacianSolver<double> solver(flag.model, 1.0, "test");
   solver.prepare(1.0 / 60, 0.0);
   const Index n = flag.model.particleCount();
   const auto split = solver.split();
   const Index first = split[0], second = split[1] - split[0], top = n - split[1];
-  EXPECT_GT(first, n / 4);
-  EXPECT_GT(second, n / 4);
+  EXPECT_GT(first, n * 2 / 5) << first << " + " << second << " + " << top;
+  EXPECT_GT(second, n * 2 / 5) << first << " + " << second << " + " << top;
   EXPECT_LT(top, n / 10) << first << " + " << second << " + " << top;
+  EXPECT_GT(top, 0);  // one connected cloth: cut through
+}
+
+TEST(SpringLaplacianSolver, GivesTwoSeparateClothsOneTaskEachWithoutASeparator) {
+  const ModelAndState<double> two = meshCloth(40, 2);
+  detail::SpringLaplacianSolver<double> solver(two.model, 1.0, "test");
+  solver.prepare(1.0 / 60, 0.0);
+  const Index n = two.model.particleCount();
+  const auto split = solver.split();
+  // one cloth a side (its four pinned particles, each a component of its own, go where
+  // they balance), no separator
+  EXPECT_NEAR(static_cast<double>(split[0]), static_cast<double>(n / 2), 4.0);
+  EXPECT_EQ(split[1], n);
+}
+
+TEST(SpringLaplacianSolver, SmallModelsRunAsOneTask) {
+  const ModelAndState<double> rope = makeRope<double>(50);
+  detail::SpringLaplacianSolver<double> solver(rope.model, 1.0, "test");
+  solver.prepare(1.0 / 60, 0.0);
+  EXPECT_EQ(solver.split()[1], 0);
 }
 
 TEST(SpringLaplacianSolver, ModelsWithoutSpringsOrParticlesSolve) {
@@ -163,6 +192,17 @@ TEST(SpringLaplacianSolver, ModelsWithoutSpringsOrParticlesSolve) {
   EXPECT_DOUBLE_EQ(x(0, 0), 1.0);
   EXPECT_DOUBLE_EQ(x(0, 2), 3.0);
   EXPECT_DOUBLE_EQ(x(1, 1), 2.0);
+  ModelBuilder<double> single;
+  single.addParticle(Vec3d(0, 0, 0), 0.25);
+  const ModelAndState<double> one = single.build();
+  detail::SpringLaplacianSolver<double> alone(one.model, 1.0, "test");
+  alone.prepare(0.01, 2.0);  // P = m + h c = 0.27
+  Eigen::MatrixXd b1(1, 3);
+  b1 << 0.27, -0.54, 0.0;
+  const Eigen::MatrixXd x1 = solveWith(alone, b1, Executor(2));
+  EXPECT_NEAR(x1(0, 0), 1.0, 1e-15);
+  EXPECT_NEAR(x1(0, 1), -2.0, 1e-15);
+  EXPECT_EQ(x1(0, 2), 0.0);
   const ModelAndState<double> empty = ModelBuilder<double>().build();
   detail::SpringLaplacianSolver<double> none(empty.model, 1.0, "test");
   none.prepare(0.01, 0.0);

@@ -9,22 +9,24 @@
 //
 // P is factorised (Eigen's SimplicialLDLT, in double for both precisions) per (h, c); the two
 // most recently used factors are kept, so a step with a cached h allocates nothing. The
-// ordering is found once: approximate minimum degree, then a post-order of its elimination
-// tree, so that every subtree of the tree is a contiguous range of the factor's columns.
+// ordering is found once: one level of nested dissection (two parts that no spring joins
+// and a separator; whole connected components where they balance), each part in
+// approximate-minimum-degree order, the separator last; small models: minimum degree on
+// the whole.
 //
 // The triangular solves are weft's own, both in gather form (each unknown sums its terms in
 // registers and is written once; scattering into later rows instead chains every update of
 // a row through a store and a load, 2-4x slower), the three coordinates interleaved so the
 // factor is read once per solve. L y = b runs over the rows of L (a second copy of the
 // factor, transposed), L^T x = D^-1 y over its columns, each column's terms farthest first,
-// so that the sum waits for the unknown just computed only at its end. The columns split
-// into two independent ranges (unions of subtrees: neither reads the other's unknowns) and
-// a top range (the separator near the root): the two ranges run as two tasks, the top range
-// after (forward) or before (backward) them. Every unknown is summed in the same order
-// whichever thread runs its task, so the result is the same for any thread count. The
-// gather into the factor's order and the scatter back are parallel passes over particle
-// blocks; the scatter also forms r . z per block. The file is compiled without
-// floating-point contraction (see kernel/CMakeLists.txt).
+// so that the sum waits for the unknown just computed only at its end. The two parts'
+// columns never reach each other's rows: they run as two tasks, the separator's rows after
+// (forward, with each part's share of their sums formed in its task) or before (backward)
+// them. Every unknown is summed in the same order whichever thread runs its task, so the
+// result is the same for any thread count. The gather into the factor's order and the
+// scatter back are parallel passes over particle blocks; the scatter also forms r . z per
+// block. The file is compiled without floating-point contraction (see
+// kernel/CMakeLists.txt).
 #pragma once
 
 #include <Eigen/SparseCore>
@@ -61,10 +63,11 @@ class SpringLaplacianSolver {
   /// buffer() = (L D L^T)^-1 buffer() with the factor prepare() made current.
   void solveBuffer(const Executor& exec) { solve(*current_, exec); }
 
-  /// The column ranges of the current factor's solve: [0, split[0]) and [split[0],
-  /// split[1]) run as two tasks, [split[1], n) alone (for tests and benchmarks).
   /// Entries of the current factor's strict lower triangle (0 before prepare()).
   Index factorEntries() const { return current_ != nullptr ? static_cast<Index>(current_->lower.nonZeros()) : 0; }
+  /// The column ranges of the current factor's solve: [0, split[0]) and [split[0],
+  /// split[1]) run as two tasks, [split[1], n) after them; {0, 0}: one task (for tests and
+  /// benchmarks).
   std::array<Index, 2> split() const { return current_ != nullptr ? current_->split : std::array<Index, 2>{0, 0}; }
 
  private:
@@ -80,7 +83,6 @@ class SpringLaplacianSolver {
   };
   Eigen::SparseMatrix<double> assemble(double h, double drag) const;
   void solve(const Factor& f, const Executor& exec);
-  static std::array<Index, 2> splitColumns(const Eigen::SparseMatrix<double>& lower);
   static bool independent(const Eigen::SparseMatrix<double>& lower, std::array<Index, 2> split);
 
   const Model<S>* model_;
@@ -89,10 +91,11 @@ class SpringLaplacianSolver {
   Index n_;
   std::vector<unsigned char> free_;  // 1 for free particles
   std::vector<int> position_;        // particle -> row in the factor's order
-  std::vector<int> inversePosition_;
-  std::vector<double> work_;              // (4 n) interleaved right-hand side / solution, a zero pad per row
+  // Aligned to Eigen's largest alignment (64 bytes), so no row of four straddles a line.
+  using AlignedDoubles = std::vector<double, Eigen::aligned_allocator<double>>;
+  AlignedDoubles work_;                   // (4 n) interleaved right-hand side / solution, a zero pad per row
   std::array<Index, 2> partition_{0, 0};  // the dissection's two parts, when found
-  std::vector<double> border_;            // per top row, 2 x 4: each task's share of its sum
+  AlignedDoubles border_;                 // (2 x top rows x 4): each task's share of the top rows' sums
   std::array<Factor, 2> cache_;
   const Factor* current_ = nullptr;
   std::uint64_t useClock_ = 0;
