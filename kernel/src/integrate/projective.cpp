@@ -42,6 +42,12 @@
 // SpringLaplacianSolver's (spring_laplacian_solver.hpp, with theta = 1), which implicit
 // Euler's projective preconditioner shares.
 //
+// Grids. On a model with a grid layout the local step runs over each spring family's rows
+// (a spring's endpoints i and i + offset for consecutive i: contiguous loads, where the
+// general per-spring endpoints need gathers) and the right-hand side is gathered by the
+// same stencil (per particle: each family's spring from it, minus the one to it) instead of
+// the incidence lists; tests/test_integrate.cpp checks both paths agree.
+//
 // Convergence. Each iteration (a local step, a gather, a solve) is a fixed-point step
 // towards backward Euler (without damping it lowers the backward-Euler energy: Liu et
 // al.); it converges linearly, and a fixed count is run (IntegratorOptions::projectiveIterations). StepWork reports
