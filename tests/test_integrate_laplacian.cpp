@@ -1,6 +1,7 @@
 // tests/test_integrate_laplacian.cpp — the prefactored solve with the springs' scalar matrix
 // (kernel/src/integrate/spring_laplacian_solver.cpp), projective dynamics' global step and
-// implicit Euler's projective preconditioner: its two-task triangular solves give P^-1 b
+// implicit Euler's projective preconditioner: its two-task triangular solves with the
+// factor's entries in float give P^-1 b to ~1e-6, and corrections with them converge to it
 // (checked against the matrix assembled here from the model), on grids, triangle meshes,
 // ropes, pinned and disconnected models, bitwise the same on 1 and 2 threads; a grid's
 // columns split into two balanced tasks with a small separator, two separate cloths into
@@ -119,9 +120,14 @@ TEST(SpringLaplacianSolver, SolvesTheAssembledMatrixOnEveryKindOfModel) {
       solver.prepare(h, 0.3);
       const Eigen::MatrixXd rhs = Eigen::MatrixXd::Random(n, 3);
       const Executor exec(2);
-      const Eigen::MatrixXd x = solveWith(solver, rhs, exec);
-      const Eigen::MatrixXd residual = assembled(model, 1.0, h, 0.3) * x - rhs;
-      EXPECT_LT(residual.cwiseAbs().maxCoeff(), 1e-10 * rhs.cwiseAbs().maxCoeff()) << "h = " << h;
+      const Eigen::SparseMatrix<double> P = assembled(model, 1.0, h, 0.3);
+      Eigen::MatrixXd x = solveWith(solver, rhs, exec);
+      // The factor's entries are floats: one solve leaves ~1e-6 of the right-hand side...
+      const double scale = rhs.cwiseAbs().maxCoeff();
+      EXPECT_LT((P * x - rhs).cwiseAbs().maxCoeff(), 1e-5 * scale) << "h = " << h;
+      // ...and each correction with the same solve takes off about as much again.
+      for (int refinement = 0; refinement < 3; ++refinement) x += solveWith(solver, rhs - P * x, exec);
+      EXPECT_LT((P * x - rhs).cwiseAbs().maxCoeff(), 1e-11 * scale) << "h = " << h;
     }
   }
 }
@@ -136,7 +142,7 @@ TEST(SpringLaplacianSolver, IsBitwiseTheSameOnOneAndTwoThreads) {
     const Executor one(1), two(2);
     const Eigen::MatrixXd x1 = solveWith(solver, rhs, one);
     const Eigen::MatrixXd residual = assembled(model, 0.5, 1.0 / 100, 0.0) * x1 - rhs;
-    EXPECT_LT(residual.cwiseAbs().maxCoeff(), 1e-10 * rhs.cwiseAbs().maxCoeff());
+    EXPECT_LT(residual.cwiseAbs().maxCoeff(), 1e-5 * rhs.cwiseAbs().maxCoeff());
     for (int run = 0; run < 5; ++run) {
       const Eigen::MatrixXd x2 = solveWith(solver, rhs, two);
       ASSERT_EQ(0, std::memcmp(x1.data(), x2.data(), sizeof(double) * static_cast<size_t>(x1.size())));

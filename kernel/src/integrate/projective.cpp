@@ -28,6 +28,16 @@
 // Pinned particles keep their velocity (kinematic pins move on), dx = h v0: their rows of
 // the matrix are the identity, and their springs to free particles move to the right.
 //
+// Correction form. Each iteration solves for a correction, P delta = b(dx) - P dx, and
+// adds it: dx += delta (P the matrix above, b the right-hand side at the current iterate).
+// With P applied to dx folded in, a spring's share of the residual is
+//   h^2 ks (r_s e^_s - e_s) - h kd (e^_s . u_s) e^_s   (e_s = e0_s + u_s, the current vector)
+// and a free particle's row adds M (h v0 + h^2 a_ext) - (m + h c) dx; pinned rows are 0.
+// In exact arithmetic it is the same iteration. Its fixed point does not depend on the
+// factor's rounding, so the factor's entries are stored in float (spring_laplacian_solver.hpp):
+// a solve with them leaves a residual with P of ~1e-6 of its right-hand side, which changes
+// how fast the iteration converges by about as little, not where it converges to.
+//
 // The solve. The matrix is symmetric positive definite; it is factorised once per time
 // step h (Eigen's SimplicialLDLT, in double for both precisions, on an ordering found once:
 // one level of nested dissection, each part in approximate-minimum-degree order) and kept;
@@ -152,15 +162,15 @@ class Projective final : public Integrator<S> {
 
     for (int k = 0; k < iterations_; ++k) {
       localStep(x0, h, exec);
-      // Right-hand side, gathered per particle (grid: by stencil; else in its incidence
-      // order), into the factor's ordering with the coordinates interleaved.
+      // The residual r = b(dx) - P dx, gathered per particle (grid: by stencil; else in its
+      // incidence order), into the factor's ordering with the coordinates interleaved.
       exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
         alignas(64) S sum[3][kGrain];
         const bool grid = gatherBlock(springTerm_, b, e, sum);
         for (Index i = b; i < e; ++i) {
           double* out = permuted + global_.offset(i);
-          if (free_[i] == S(0)) {
-            for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c));
+          if (free_[i] == S(0)) {  // dx = h v0 already: no correction
+            for (int c = 0; c < 3; ++c) out[c] = 0.0;
             continue;
           }
           S f[3] = {0, 0, 0};
@@ -168,7 +178,10 @@ class Projective final : public Integrator<S> {
             for (int c = 0; c < 3; ++c) f[c] = sum[c][i - b];
           else if (incidence_ != nullptr)
             gatherSprings(springTerm_, i, f);
-          for (int c = 0; c < 3; ++c) out[c] = static_cast<double>(constant_(i, c)) + static_cast<double>(f[c]);
+          const double diagonal = static_cast<double>(mass[i]) + static_cast<double>(h) * static_cast<double>(drag);
+          for (int c = 0; c < 3; ++c)
+            out[c] = (static_cast<double>(constant_(i, c)) + static_cast<double>(f[c])) -
+                     diagonal * static_cast<double>(displacement_(i, c));
         }
       });
       global_.solveBuffer(exec);
@@ -179,7 +192,7 @@ class Projective final : public Integrator<S> {
         else
           for (Index i = b; i < e; ++i) {
             const double* in = permuted + global_.offset(i);
-            for (int c = 0; c < 3; ++c) displacement_(i, c) = static_cast<S>(in[c]);
+            for (int c = 0; c < 3; ++c) displacement_(i, c) += static_cast<S>(in[c]);
           }
       });
       ++work.linearIterations;
@@ -254,25 +267,26 @@ class Projective final : public Integrator<S> {
     const double invH = 1.0 / static_cast<double>(h);
     double move = 0, moved = 0;
     for (Index i = b; i < e; ++i) {
-      const double* in = global_.buffer() + global_.offset(i);
+      const double* in = global_.buffer() + global_.offset(i);  // the last correction
       const bool isFree = free_[i] != S(0);
       for (int c = 0; c < 3; ++c) {
-        move = std::max(move, std::abs(in[c] - static_cast<double>(displacement_(i, c))));
-        moved = std::max(moved, std::abs(in[c]));
-        const S dx = static_cast<S>(in[c]);
+        const S dx = displacement_(i, c) + static_cast<S>(in[c]);
+        move = std::max(move, std::abs(in[c]));
+        moved = std::max(moved, std::abs(static_cast<double>(dx)));
         x1(i, c) = x0(i, c) + dx;
-        v1(i, c) = isFree ? static_cast<S>(in[c] * invH) : v0(i, c);
+        v1(i, c) = isFree ? static_cast<S>(static_cast<double>(dx) * invH) : v0(i, c);
       }
     }
     blockMove_[static_cast<size_t>(block)] = move;
     blockMax_[static_cast<size_t>(block)] = moved;
   }
 
-  /// The local step, per spring, with e0 = x0_a - x0_b, u = dx_a - dx_b the change of the
-  /// spring vector and e^ the direction of e = e0 + u:
-  ///   springTerm = h^2 ks (r e^ - e0) + h kd u_perp,  u_perp = u - (e^ . u) e^
-  /// (the matrix applied to x0 taken out of the right-hand side, as the unknown is dx), plus
-  /// a pinned endpoint's dx times (h^2 ks + h kd), moved to the free endpoint's side.
+  /// The local step, per spring, with u = dx_a - dx_b the change of the spring vector over
+  /// the step, e = x0_a - x0_b + u the vector at the iterate and e^ its direction: the
+  /// spring's share of the residual b(dx) - P dx,
+  ///   springTerm = h^2 ks (r e^ - e) - h kd (e^ . u) e^
+  /// (the right-hand side's h^2 ks (r e^ - e0) + h kd u_perp less P's (h^2 ks + h kd) u;
+  /// for a spring to a pinned particle the same, the pinned side's dx being on both).
   void localStep(const Vec3Array<S>& x0, S h, const Executor& exec) {
     const Springs<S>& sp = model_->springs();
     const S h2 = h * h;
@@ -290,7 +304,7 @@ class Projective final : public Integrator<S> {
           const Index offset = f.rowOffset * W + f.columnOffset;
           for (Index r = r0; r < last; ++r)
             localSprings<true>(f.firstSpring + r * count, count, r * W + c0, offset, h2, h, nullptr, nullptr,
-                               sp.stiffness.data(), sp.restLength.data(), sp.damping.data(), free_.data(), x0.data(),
+                               sp.stiffness.data(), sp.restLength.data(), sp.damping.data(), x0.data(),
                                displacement_.data(), n_, springTerm_.data(), m);
         }
       });
@@ -298,7 +312,7 @@ class Projective final : public Integrator<S> {
     }
     exec.parallelFor(m, kSpringGrain, [&](Index b, Index e) {
       localSprings<false>(b, e - b, 0, 0, h2, h, sp.a.data(), sp.b.data(), sp.stiffness.data(), sp.restLength.data(),
-                          sp.damping.data(), free_.data(), x0.data(), displacement_.data(), n_, springTerm_.data(), m);
+                          sp.damping.data(), x0.data(), displacement_.data(), n_, springTerm_.data(), m);
     });
   }
 
@@ -309,8 +323,8 @@ class Projective final : public Integrator<S> {
   template <bool kStrided>
   static void localSprings(Index first, Index count, Index i0, Index offset, S h2, S h, const Index* __restrict pa,
                            const Index* __restrict pb, const S* __restrict stiffness, const S* __restrict restLength,
-                           const S* __restrict damping, const S* __restrict isFree, const S* __restrict x0,
-                           const S* __restrict dx, Index n, S* __restrict term, Index m) {
+                           const S* __restrict damping, const S* __restrict x0, const S* __restrict dx, Index n,
+                           S* __restrict term, Index m) {
     for (Index j = 0; j < count; ++j) {
       const Index s = first + j;
       Index ia, ib;
@@ -321,30 +335,24 @@ class Projective final : public Integrator<S> {
         ia = pa[s];
         ib = pb[s];
       }
-      S d[3], e0[3], u[3];
+      S d[3], e[3], u[3];
       for (int c = 0; c < 3; ++c) {
-        e0[c] = x0[c * n + ia] - x0[c * n + ib];
         u[c] = dx[c * n + ia] - dx[c * n + ib];
-        d[c] = e0[c] + u[c];
+        e[c] = (x0[c * n + ia] - x0[c * n + ib]) + u[c];  // the spring vector at the iterate
       }
-      const S len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      const S len2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
       const bool hasDirection = len2 > std::numeric_limits<S>::min();
       const S invLen = (hasDirection ? S(1) : S(0)) / std::sqrt(hasDirection ? len2 : S(1));
       S along = 0;
       for (int c = 0; c < 3; ++c) {
-        d[c] *= invLen;  // unit direction (zero for a spring of zero length)
+        d[c] = e[c] * invLen;  // unit direction (zero for a spring of zero length)
         along += d[c] * u[c];
       }
       const S ks = h2 * stiffness[s];
       const S rest = restLength[s];
       const S viscous = h * damping[s];
-      const S coupling = ks + viscous;
-      const S fa = isFree[ia], fb = isFree[ib];
-      const S toA = coupling * fa * (S(1) - fb), toB = coupling * fb * (S(1) - fa);  // one pinned endpoint
       for (int c = 0; c < 3; ++c) {
-        S t = ks * (rest * d[c] - e0[c]) + viscous * (u[c] - along * d[c]);
-        t += toA * dx[c * n + ib];
-        t -= toB * dx[c * n + ia];
+        const S t = ks * (rest * d[c] - e[c]) - viscous * along * d[c];
         term[c * m + s] = t;
       }
     }

@@ -205,7 +205,7 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
   f.h = h;
   f.drag = drag;
   f.lastUse = useClock_;
-  f.lower = ldlt.matrixL().nestedExpression();
+  f.lower = ldlt.matrixL().nestedExpression().template cast<float>();
   f.lower.makeCompressed();
   f.rows = f.lower.transpose();
   f.rows.makeCompressed();
@@ -257,7 +257,7 @@ void SpringLaplacianSolver<S>::apply(const Vec3Array<S>& r, Vec3Array<S>& z, std
 }
 
 template <class S>
-bool SpringLaplacianSolver<S>::independent(const Eigen::SparseMatrix<double>& lower, std::array<Index, 2> split) {
+bool SpringLaplacianSolver<S>::independent(const Eigen::SparseMatrix<float>& lower, std::array<Index, 2> split) {
   // The first range's columns must reach no row of the second (the reverse holds by order).
   if (split[0] < 0 || split[0] > split[1] || split[1] > lower.cols()) return false;
   const int* outer = lower.outerIndexPtr();
@@ -289,21 +289,21 @@ __attribute__((always_inline)) inline void store(double* y, Index row, Row r) {
 /// sum_p value[p] y(inner[p]) over entries [p, stop) of a row of L, in increasing column
 /// (the row's nearest unknown comes last: the sum need not wait for it until its end), four
 /// partial sums (on 2 threads 0.92-1.06 against 1.30-1.49 ms with two, at 128^2).
-__attribute__((always_inline)) inline Row rowSum(const int* inner, const double* value, int p, int stop,
+__attribute__((always_inline)) inline Row rowSum(const int* inner, const float* value, int p, int stop,
                                                  const double* y) {
   Row s0 = {0, 0, 0, 0}, s1 = s0, s2 = s0, s3 = s0;
   for (; p + 3 < stop; p += 4) {
-    s0 += value[p] * load(y, inner[p]);
-    s1 += value[p + 1] * load(y, inner[p + 1]);
-    s2 += value[p + 2] * load(y, inner[p + 2]);
-    s3 += value[p + 3] * load(y, inner[p + 3]);
+    s0 += static_cast<double>(value[p]) * load(y, inner[p]);
+    s1 += static_cast<double>(value[p + 1]) * load(y, inner[p + 1]);
+    s2 += static_cast<double>(value[p + 2]) * load(y, inner[p + 2]);
+    s3 += static_cast<double>(value[p + 3]) * load(y, inner[p + 3]);
   }
-  for (; p < stop; ++p) s0 += value[p] * load(y, inner[p]);
+  for (; p < stop; ++p) s0 += static_cast<double>(value[p]) * load(y, inner[p]);
   return (s0 + s1) + (s2 + s3);
 }
 
 /// y(i) -= sum_j L_ij y(j) over rows i in [begin, end) of L (`rows`: L^T by columns).
-void forwardRows(const Eigen::SparseMatrix<double>& rows, Index begin, Index end, double* y) {
+void forwardRows(const Eigen::SparseMatrix<float>& rows, Index begin, Index end, double* y) {
   const int* outer = rows.outerIndexPtr();
   for (Index i = begin; i < end; ++i)
     store(y, i, load(y, i) - rowSum(rows.innerIndexPtr(), rows.valuePtr(), outer[i], outer[i + 1], y));
@@ -312,22 +312,22 @@ void forwardRows(const Eigen::SparseMatrix<double>& rows, Index begin, Index end
 /// x(j) = y(j) / D_j - sum_i L_ij x(i) over columns j in [begin, end), decreasing j; the
 /// terms in decreasing i (the column's parent in the elimination tree, often the unknown
 /// just computed, comes last), four partial sums.
-void backwardColumns(const Eigen::SparseMatrix<double>& lower, const double* inverseD, Index begin, Index end,
+void backwardColumns(const Eigen::SparseMatrix<float>& lower, const double* inverseD, Index begin, Index end,
                      double* y) {
   const int* outer = lower.outerIndexPtr();
   const int* inner = lower.innerIndexPtr();
-  const double* value = lower.valuePtr();
+  const float* value = lower.valuePtr();
   for (Index j = end - 1; j >= begin; --j) {
     Row s0 = {0, 0, 0, 0}, s1 = s0, s2 = s0, s3 = s0;
     const int first = outer[j];
     int p = outer[j + 1] - 1;
     for (; p - 3 >= first; p -= 4) {
-      s0 += value[p] * load(y, inner[p]);
-      s1 += value[p - 1] * load(y, inner[p - 1]);
-      s2 += value[p - 2] * load(y, inner[p - 2]);
-      s3 += value[p - 3] * load(y, inner[p - 3]);
+      s0 += static_cast<double>(value[p]) * load(y, inner[p]);
+      s1 += static_cast<double>(value[p - 1]) * load(y, inner[p - 1]);
+      s2 += static_cast<double>(value[p - 2]) * load(y, inner[p - 2]);
+      s3 += static_cast<double>(value[p - 3]) * load(y, inner[p - 3]);
     }
-    for (; p >= first; --p) s0 += value[p] * load(y, inner[p]);
+    for (; p >= first; --p) s0 += static_cast<double>(value[p]) * load(y, inner[p]);
     store(y, j, load(y, j) * inverseD[j] - ((s0 + s1) + (s2 + s3)));
   }
 }
@@ -349,7 +349,7 @@ void SpringLaplacianSolver<S>::solve(const Factor& f, const Executor& exec) {
   // columns (into border_), then the top rows: y - first task's sum - second's - their own.
   const int* outer = f.rows.outerIndexPtr();
   const int* inner = f.rows.innerIndexPtr();
-  const double* value = f.rows.valuePtr();
+  const float* value = f.rows.valuePtr();
   const Index top = n - b;
   double* border = border_.data();  // the first task's sums (top rows), then the second's
   exec.parallelFor(2, 1, [&](Index task, Index) {

@@ -7,10 +7,14 @@
 // by projective dynamics as its global matrix (projective.cpp); smaller theta trades the stiffness P assigns across
 // slack springs (where the Hessian has none) against what it assigns along them.
 //
-// P is factorised (Eigen's SimplicialLDLT, in double for both precisions) per (h, c); the two
-// most recently used factors are kept, so a step with a cached h allocates nothing. The
-// ordering is found once: one level of nested dissection (two parts that no spring joins
-// and a separator; whole connected components where they balance), each part in
+// P is factorised (Eigen's SimplicialLDLT, in double for both precisions) per (h, c); the
+// factor's entries are kept in float (8 bytes an entry with its row index instead of 12: the
+// solves stream the factor, so this is what they cost), D^-1 and every sum in double. A
+// solve is then one with L~ D L~^T, still symmetric positive definite (a preconditioner),
+// leaving a residual with P of ~1e-6 of the right-hand side (tests/test_integrate_laplacian.cpp);
+// projective dynamics iterates in correction form, so its fixed point does not move. The two most recently used factors
+// are kept, so a step with a cached h allocates nothing. The ordering is found once: one level of nested dissection
+// (two parts that no spring joins and a separator; whole connected components where they balance), each part in
 // approximate-minimum-degree order, the separator last; small models: minimum degree on
 // the whole.
 //
@@ -75,15 +79,15 @@ class SpringLaplacianSolver {
     double h = 0;  // 0: empty slot
     double drag = -1;
     std::uint64_t lastUse = 0;
-    Eigen::SparseMatrix<double> lower;  // strictly lower triangle of L (unit diagonal), by columns
-    Eigen::SparseMatrix<double> rows;   // the same, by rows (L^T by columns)
-    Eigen::VectorXd inverseD;           // 1 / D
-    std::array<Index, 2> split{0, 0};   // [0, split[0]) and [split[0], split[1]): independent
-    std::vector<int> cuts;              // per top row: where its first and second task's terms end
+    Eigen::SparseMatrix<float> lower;  // strictly lower triangle of L (unit diagonal), by columns
+    Eigen::SparseMatrix<float> rows;   // the same, by rows (L^T by columns)
+    Eigen::VectorXd inverseD;          // 1 / D
+    std::array<Index, 2> split{0, 0};  // [0, split[0]) and [split[0], split[1]): independent
+    std::vector<int> cuts;             // per top row: where its first and second task's terms end
   };
   Eigen::SparseMatrix<double> assemble(double h, double drag) const;
   void solve(const Factor& f, const Executor& exec);
-  static bool independent(const Eigen::SparseMatrix<double>& lower, std::array<Index, 2> split);
+  static bool independent(const Eigen::SparseMatrix<float>& lower, std::array<Index, 2> split);
 
   const Model<S>* model_;
   double theta_;
