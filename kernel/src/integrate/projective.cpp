@@ -237,20 +237,20 @@ class Projective final : public Integrator<S> {
         const Index count = c1 - c0;
         if (r + f.rowOffset < H) {  // particle (r, c) is endpoint a of spring (r, c)
           const Index lo = std::max(cs, c0), hi = std::min(ce, c1);
-          const Index s0 = f.firstSpring + r * count - c0, i0 = r * W - b;
-          for (int c = 0; c < 3; ++c) {
-            const S* __restrict src = t.data() + c * m + s0;
-            S* __restrict dst = sum[c] + i0;
-            for (Index k = lo; k < hi; ++k) dst[k] += src[k];
+          const Index s = f.firstSpring + r * count + (lo - c0), i = r * W + lo - b;  // at column lo
+          for (int c = 0; c < 3 && lo < hi; ++c) {
+            const S* __restrict src = t.data() + c * m + s;
+            S* __restrict dst = sum[c] + i;
+            for (Index k = 0; k < hi - lo; ++k) dst[k] += src[k];
           }
         }
         if (r >= f.rowOffset) {  // endpoint b of spring (r - dr, c - dc)
           const Index lo = std::max(cs, c0 + f.columnOffset), hi = std::min(ce, c1 + f.columnOffset);
-          const Index s0 = f.firstSpring + (r - f.rowOffset) * count - c0 - f.columnOffset, i0 = r * W - b;
-          for (int c = 0; c < 3; ++c) {
-            const S* __restrict src = t.data() + c * m + s0;
-            S* __restrict dst = sum[c] + i0;
-            for (Index k = lo; k < hi; ++k) dst[k] -= src[k];
+          const Index s = f.firstSpring + (r - f.rowOffset) * count + (lo - f.columnOffset - c0), i = r * W + lo - b;
+          for (int c = 0; c < 3 && lo < hi; ++c) {
+            const S* __restrict src = t.data() + c * m + s;
+            S* __restrict dst = sum[c] + i;
+            for (Index k = 0; k < hi - lo; ++k) dst[k] -= src[k];
           }
         }
       }
@@ -258,9 +258,9 @@ class Projective final : public Integrator<S> {
     return true;
   }
 
-  /// The last iteration's displacement into (x1, v1) for particles [b, e): x1 = x0 + dx and
-  /// v1 = dx / h from the solution in double; pinned particles keep v0 (their dx = h v0 is
-  /// their row's solution). Also the block's largest change of this iteration and largest
+  /// The last iteration's displacement into (x1, v1) for particles [b, e): dx = the iterate
+  /// plus the last correction, x1 = x0 + dx and v1 = dx / h; pinned particles keep v0
+  /// (their dx = h v0 gets no correction). Also the block's largest change of this iteration and largest
   /// displacement.
   void finish(const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1, Vec3Array<S>& v1, Index block,
               Index b, Index e) {
