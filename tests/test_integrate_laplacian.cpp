@@ -11,6 +11,7 @@
 #include <Eigen/SparseCore>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "integrate/spring_laplacian_solver.hpp"
@@ -115,12 +116,13 @@ TEST(SpringLaplacianSolver, SolvesTheAssembledMatrixOnEveryKindOfModel) {
     SCOPED_TRACE(test.name);
     const Model<double>& model = test.cloth.model;
     const Index n = model.particleCount();
-    for (const double h : {1.0 / 60, 1.0 / 600}) {
+    for (const auto& [h, drag] : {std::pair{1.0 / 60, 0.0}, std::pair{1.0 / 600, 0.0}, std::pair{1.0 / 60, 0.3}}) {
+      SCOPED_TRACE(drag);
       detail::SpringLaplacianSolver<double> solver(model, 1.0, "test");
-      solver.prepare(h, 0.3);
+      solver.prepare(h, drag);
       const Eigen::MatrixXd rhs = Eigen::MatrixXd::Random(n, 3);
       const Executor exec(2);
-      const Eigen::SparseMatrix<double> P = assembled(model, 1.0, h, 0.3);
+      const Eigen::SparseMatrix<double> P = assembled(model, 1.0, h, drag);
       Eigen::MatrixXd x = solveWith(solver, rhs, exec);
       // The factor's entries are floats: one solve leaves ~1e-6 of the right-hand side...
       const double scale = rhs.cwiseAbs().maxCoeff();

@@ -317,8 +317,7 @@ class Projective final : public Integrator<S> {
   }
 
   /// The local step over springs [first, first + count) on raw arrays (coordinate-major:
-  /// x(i, c) at x[c n + i]), branch-free so that it vectorises: a pinned endpoint's term is
-  /// weighted by the free flags instead of tested. kStrided: spring first + j joins particles
+  /// x(i, c) at x[c n + i]), branch-free so that it vectorises. kStrided: spring first + j joins particles
   /// i0 + j and i0 + j + offset (a grid family's row); else the endpoints are pa[s], pb[s].
   template <bool kStrided>
   static void localSprings(Index first, Index count, Index i0, Index offset, S h2, S h, const Index* __restrict pa,

@@ -193,23 +193,29 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
     }
   // The least recently used slot is refilled; slots never move (see projective.cpp).
   Factor& f = cache_[0].lastUse <= cache_[1].lastUse ? cache_[0] : cache_[1];
-  const Eigen::SparseMatrix<double> A = assemble(h, drag);
-  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation(n_);
-  for (Index i = 0; i < n_; ++i) permutation.indices()[i] = position_[static_cast<size_t>(i)];
-  Eigen::SparseMatrix<double> permuted(n_, n_);
-  permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation);
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
-    throw std::runtime_error(std::string(what_) +
-                             " is not positive definite (a particle of zero mass that is not pinned?)");
+  // The slot's old factor goes first, and the double factor before the transposed copy is
+  // made, so that a factorisation's peak memory holds one factor in double and one in float.
+  if (current_ == &f) current_ = nullptr;
+  f = Factor{};
+  {
+    const Eigen::SparseMatrix<double> A = assemble(h, drag);
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> permutation(n_);
+    for (Index i = 0; i < n_; ++i) permutation.indices()[i] = position_[static_cast<size_t>(i)];
+    Eigen::SparseMatrix<double> permuted(n_, n_);
+    permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
+      throw std::runtime_error(std::string(what_) +
+                               " is not positive definite (a particle of zero mass that is not pinned?)");
+    f.lower = ldlt.matrixL().nestedExpression().template cast<float>();
+    f.lower.makeCompressed();
+    f.inverseD = ldlt.vectorD().cwiseInverse();
+  }
+  f.rows = f.lower.transpose();
+  f.rows.makeCompressed();
   f.h = h;
   f.drag = drag;
   f.lastUse = useClock_;
-  f.lower = ldlt.matrixL().nestedExpression().template cast<float>();
-  f.lower.makeCompressed();
-  f.rows = f.lower.transpose();
-  f.rows.makeCompressed();
-  f.inverseD = ldlt.vectorD().cwiseInverse();
   // The dissection's parts, unless the factor is too small for two tasks to pay (or, which the
   // ordering rules out, the first part's columns reach the second's rows: the tasks would race).
   const bool twoTasks =

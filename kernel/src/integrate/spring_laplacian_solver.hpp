@@ -54,7 +54,8 @@ class SpringLaplacianSolver {
   /// (allocates; returns true then).
   bool prepare(double h, double drag);
 
-  /// z = F P^-1 F r (F zeroes pinned particles' rows), and partials[k] = r . z over the
+  /// z = F P~^-1 F r (F zeroes pinned particles' rows; P~ = L~ D L~^T with the factor's
+  /// entries rounded to float, within ~1e-6 of P), and partials[k] = r . z over the
   /// particles of block k (blocks of `block` particles, accumulated in double).
   void apply(const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials, Index block, const Executor& exec);
 

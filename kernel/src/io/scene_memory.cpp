@@ -35,11 +35,13 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
     case IntegratorKind::ImplicitEuler:
       return isFloat ? Rates{158, 85} : Rates{302, 154};
     case IntegratorKind::Projective:
-      // Two cached factors of the global matrix (double; ~69 entries of 12 bytes per
-      // particle at 128^2, growing slowly with the size) dominate.
-      return isFloat ? Rates{2000, 62} : Rates{2100, 110};
+      // The global matrix's factor dominates: ~76 entries a particle at 128^2, growing
+      // slowly with the size, kept as float values and row indices by columns and by rows
+      // (16 bytes an entry), and in double too while it is made. Peaks of `weft run flag
+      // --integrator projective` (2026-11-26): 62 MiB at 128^2, 228 MiB at 256^2.
+      return isFloat ? Rates{2600, 62} : Rates{2700, 110};
   }
-  return {2100, 154};  // the largest
+  return {2700, 154};  // the largest
 }
 // While the model is built, the builder's arrays (in double: 7 values and a pin flag per
 // particle, 33 bytes per spring, 12 per triangle) and the Model's particle arrays and state
