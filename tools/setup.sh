@@ -23,9 +23,10 @@ packages=(
 )
 
 # Peers, optional (WEFT_PEERS=1 bash tools/setup.sh): weft_bench builds BM_Peer_Embree_*
-# when Embree is found and BM_Peer_Bullet_Pile / BM_Peer_Bullet_Cloth when Bullet is (docs/benchmarks.md).
+# when Embree is found, BM_Peer_Bullet_Pile / BM_Peer_Bullet_Cloth when Bullet is and
+# BM_Peer_Cholmod_* when CHOLMOD (SuiteSparse) is (docs/benchmarks.md).
 if [ "${WEFT_PEERS:-0}" = "1" ]; then
-  packages+=(libembree-dev libbullet-dev)
+  packages+=(libembree-dev libbullet-dev libsuitesparse-dev)
 fi
 
 missing=()

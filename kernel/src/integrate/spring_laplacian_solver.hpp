@@ -70,6 +70,11 @@ class SpringLaplacianSolver {
 
   /// Entries of the current factor's strict lower triangle (0 before prepare()).
   Index factorEntries() const { return current_ != nullptr ? static_cast<Index>(current_->lower.nonZeros()) : 0; }
+  /// P's lower triangle (diagonal included) in the particles' order, for step h and drag c
+  /// (allocates; for tests and benchmarks: peers factorise the same matrix).
+  Eigen::SparseMatrix<double> matrix(double h, double drag) const { return assemble(h, drag); }
+  /// The fill-reducing ordering: particle i is row positions()[i] of the factor.
+  const std::vector<int>& positions() const { return position_; }
   /// The column ranges of the current factor's solve: [0, split[0]) and [split[0],
   /// split[1]) run as two tasks, [split[1], n) after them; {0, 0}: one task (for tests and
   /// benchmarks).
