@@ -248,7 +248,8 @@ BENCHMARK(BM_Projective_Frame)
 // ---------------------------------------------------------------------------------------
 // BM_Projective_Solve: one solve with projective dynamics' prefactored global matrix on the
 // size^2 flag at dt = 1/60 (both triangular solves, three coordinates), by thread count,
-// without the rest of an iteration. Counter: factor entries per second (each read twice).
+// without the rest of an iteration. Counters: factor entries per second (each read twice),
+// the factor's bytes (both copies).
 // ---------------------------------------------------------------------------------------
 
 void BM_Projective_Solve(benchmark::State& st) {
@@ -272,6 +273,7 @@ void BM_Projective_Solve(benchmark::State& st) {
   st.counters["allocs_per_solve"] = static_cast<double>(weftbench::allocationCount() - allocationsBefore) /
                                     static_cast<double>(std::max<std::int64_t>(solves, 1));
   st.counters["factor_entries"] = static_cast<double>(solver.factorEntries());
+  st.counters["factor_bytes"] = static_cast<double>(solver.factorBytes());
   st.counters["entries_per_second"] = benchmark::Counter(2.0 * static_cast<double>(solver.factorEntries()),
                                                          benchmark::Counter::kIsIterationInvariantRate);
 }

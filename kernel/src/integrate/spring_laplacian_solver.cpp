@@ -134,11 +134,12 @@ std::vector<int> bisect(const Eigen::SparseMatrix<double>& lower) {
 }  // namespace
 
 template <class S>
-SpringLaplacianSolver<S>::SpringLaplacianSolver(const Model<S>& model, double theta, const char* what)
+SpringLaplacianSolver<S>::SpringLaplacianSolver(const Model<S>& model, double theta, const char* what, bool wideIndices)
     : model_(&model),
       theta_(theta),
       what_(what),
       n_(model.particleCount()),
+      narrow_(!wideIndices && model.particleCount() <= 65536),
       free_(static_cast<size_t>(model.particleCount())),
       position_(static_cast<size_t>(model.particleCount())),
       work_(static_cast<size_t>(4 * model.particleCount()), 0.0) {
@@ -208,29 +209,68 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
       throw std::runtime_error(std::string(what_) +
                                " is not positive definite (a particle of zero mass that is not pinned?)");
-    f.lower = ldlt.matrixL().nestedExpression().template cast<float>();
-    f.lower.makeCompressed();
+    // L's strict lower triangle, entries rounded to float (Eigen keeps L's unit diagonal
+    // implicit, its entries sorted by row within each column).
+    const Eigen::SparseMatrix<double>& L = ldlt.matrixL().nestedExpression();
+    const bool narrow = narrow_;
+    f.lower.outer.assign(L.outerIndexPtr(), L.outerIndexPtr() + n_ + 1);
+    const int* outer = L.outerIndexPtr();
+    const int* inner = L.innerIndexPtr();
+    const double* value = L.valuePtr();
+    const auto entries = static_cast<size_t>(outer[n_] - outer[0]);
+    f.lower.value.resize(entries);
+    (narrow ? f.lower.narrow.resize(entries) : f.lower.wide.resize(entries));
+    for (Index j = 0; j < n_; ++j)
+      for (int p = outer[j]; p < outer[j + 1]; ++p) {
+        const auto q = static_cast<size_t>(p - outer[0]);
+        f.lower.value[q] = static_cast<float>(value[p]);
+        if (narrow)
+          f.lower.narrow[q] = static_cast<std::uint16_t>(inner[p]);
+        else
+          f.lower.wide[q] = inner[p];
+      }
+    for (int& o : f.lower.outer) o -= outer[0];
     f.inverseD = ldlt.vectorD().cwiseInverse();
   }
-  f.rows = f.lower.transpose();
-  f.rows.makeCompressed();
+  // The transposed copy: each row's entries in increasing column, as a sweep over the
+  // columns in order gives them.
+  {
+    const Compressed& c = f.lower;
+    Compressed& r = f.rows;
+    const auto entries = static_cast<size_t>(c.entries());
+    r.outer.assign(static_cast<size_t>(n_ + 1), 0);
+    for (size_t p = 0; p < entries; ++p) ++r.outer[static_cast<size_t>(c.index(static_cast<int>(p))) + 1];
+    for (Index i = 0; i < n_; ++i) r.outer[static_cast<size_t>(i + 1)] += r.outer[static_cast<size_t>(i)];
+    std::vector<int> next(r.outer.begin(), r.outer.end() - 1);
+    r.value.resize(entries);
+    (c.narrow.empty() ? r.wide.resize(entries) : r.narrow.resize(entries));
+    for (Index j = 0; j < n_; ++j)
+      for (int p = c.outer[static_cast<size_t>(j)]; p < c.outer[static_cast<size_t>(j + 1)]; ++p) {
+        const auto q = static_cast<size_t>(next[static_cast<size_t>(c.index(p))]++);
+        r.value[q] = c.value[static_cast<size_t>(p)];
+        if (c.narrow.empty())
+          r.wide[q] = static_cast<int>(j);
+        else
+          r.narrow[q] = static_cast<std::uint16_t>(j);
+      }
+  }
   f.h = h;
   f.drag = drag;
   f.lastUse = useClock_;
   // The dissection's parts, unless the factor is too small for two tasks to pay (or, which the
   // ordering rules out, the first part's columns reach the second's rows: the tasks would race).
   const bool twoTasks =
-      partition_[1] > 0 && f.lower.nonZeros() >= kMinimumParallelEntries && independent(f.lower, partition_);
+      partition_[1] > 0 && f.lower.entries() >= kMinimumParallelEntries && independent(f.lower, partition_);
   f.split = twoTasks ? partition_ : std::array<Index, 2>{0, 0};
   // Where each top row's terms from the first and the second task's columns end.
-  const int* outer = f.rows.outerIndexPtr();
-  const int* inner = f.rows.innerIndexPtr();
+  const std::vector<int>& outer = f.rows.outer;
   f.cuts.assign(static_cast<size_t>(2 * (n_ - f.split[1])), 0);
   for (Index i = f.split[1]; i < n_; ++i) {
-    int p = outer[i];
-    while (p < outer[i + 1] && inner[p] < f.split[0]) ++p;
+    const auto end = outer[static_cast<size_t>(i + 1)];
+    int p = outer[static_cast<size_t>(i)];
+    while (p < end && f.rows.index(p) < f.split[0]) ++p;
     f.cuts[static_cast<size_t>(2 * (i - f.split[1]))] = p;
-    while (p < outer[i + 1] && inner[p] < f.split[1]) ++p;
+    while (p < end && f.rows.index(p) < f.split[1]) ++p;
     f.cuts[static_cast<size_t>(2 * (i - f.split[1]) + 1)] = p;
   }
   border_.resize(std::max(border_.size(), static_cast<size_t>(8 * (n_ - f.split[1]))));
@@ -264,14 +304,13 @@ void SpringLaplacianSolver<S>::apply(const Vec3Array<S>& r, Vec3Array<S>& z, std
 }
 
 template <class S>
-bool SpringLaplacianSolver<S>::independent(const Eigen::SparseMatrix<float>& lower, std::array<Index, 2> split) {
+bool SpringLaplacianSolver<S>::independent(const Compressed& lower, std::array<Index, 2> split) {
   // The first range's columns must reach no row of the second (the reverse holds by order).
-  if (split[0] < 0 || split[0] > split[1] || split[1] > lower.cols()) return false;
-  const int* outer = lower.outerIndexPtr();
-  const int* inner = lower.innerIndexPtr();
+  const auto columns = static_cast<Index>(lower.outer.size()) - 1;
+  if (split[0] < 0 || split[0] > split[1] || split[1] > columns) return false;
   for (Index j = 0; j < split[0]; ++j)
-    for (int p = outer[j]; p < outer[j + 1]; ++p)
-      if (inner[p] >= split[0] && inner[p] < split[1]) return false;
+    for (int p = lower.outer[static_cast<size_t>(j)]; p < lower.outer[static_cast<size_t>(j + 1)]; ++p)
+      if (lower.index(p) >= split[0] && lower.index(p) < split[1]) return false;
   return true;
 }
 
@@ -296,8 +335,8 @@ __attribute__((always_inline)) inline void store(double* y, Index row, Row r) {
 /// sum_p value[p] y(inner[p]) over entries [p, stop) of a row of L, in increasing column
 /// (the row's nearest unknown comes last: the sum need not wait for it until its end), four
 /// partial sums (on 2 threads 0.92-1.06 against 1.30-1.49 ms with two, at 128^2).
-__attribute__((always_inline)) inline Row rowSum(const int* inner, const float* value, int p, int stop,
-                                                 const double* y) {
+template <class I>
+__attribute__((always_inline)) inline Row rowSum(const I* inner, const float* value, int p, int stop, const double* y) {
   Row s0 = {0, 0, 0, 0}, s1 = s0, s2 = s0, s3 = s0;
   for (; p + 3 < stop; p += 4) {
     s0 += static_cast<double>(value[p]) * load(y, inner[p]);
@@ -309,21 +348,18 @@ __attribute__((always_inline)) inline Row rowSum(const int* inner, const float* 
   return (s0 + s1) + (s2 + s3);
 }
 
-/// y(i) -= sum_j L_ij y(j) over rows i in [begin, end) of L (`rows`: L^T by columns).
-void forwardRows(const Eigen::SparseMatrix<float>& rows, Index begin, Index end, double* y) {
-  const int* outer = rows.outerIndexPtr();
-  for (Index i = begin; i < end; ++i)
-    store(y, i, load(y, i) - rowSum(rows.innerIndexPtr(), rows.valuePtr(), outer[i], outer[i + 1], y));
+/// y(i) -= sum_j L_ij y(j) over rows i in [begin, end) of L (by rows: outer, inner, value).
+template <class I>
+void forwardRows(const int* outer, const I* inner, const float* value, Index begin, Index end, double* y) {
+  for (Index i = begin; i < end; ++i) store(y, i, load(y, i) - rowSum(inner, value, outer[i], outer[i + 1], y));
 }
 
 /// x(j) = y(j) / D_j - sum_i L_ij x(i) over columns j in [begin, end), decreasing j; the
 /// terms in decreasing i (the column's parent in the elimination tree, often the unknown
 /// just computed, comes last), four partial sums.
-void backwardColumns(const Eigen::SparseMatrix<float>& lower, const double* inverseD, Index begin, Index end,
-                     double* y) {
-  const int* outer = lower.outerIndexPtr();
-  const int* inner = lower.innerIndexPtr();
-  const float* value = lower.valuePtr();
+template <class I>
+void backwardColumns(const int* outer, const I* inner, const float* value, const double* inverseD, Index begin,
+                     Index end, double* y) {
   for (Index j = end - 1; j >= begin; --j) {
     Row s0 = {0, 0, 0, 0}, s1 = s0, s2 = s0, s3 = s0;
     const int first = outer[j];
@@ -343,41 +379,52 @@ void backwardColumns(const Eigen::SparseMatrix<float>& lower, const double* inve
 
 template <class S>
 void SpringLaplacianSolver<S>::solve(const Factor& f, const Executor& exec) {
+  if (!f.rows.narrow.empty())
+    solveWith(f, f.rows.narrow.data(), f.lower.narrow.data(), exec);
+  else
+    solveWith(f, f.rows.wide.data(), f.lower.wide.data(), exec);
+}
+
+template <class S>
+template <class I>
+void SpringLaplacianSolver<S>::solveWith(const Factor& f, const I* rowIndex, const I* columnIndex,
+                                         const Executor& exec) {
   const Index n = n_;
   const Index a = f.split[0], b = f.split[1];
   double* y = work_.data();
   const double* inverseD = f.inverseD.data();
+  const int* outer = f.rows.outer.data();
+  const float* value = f.rows.value.data();
+  const int* columnOuter = f.lower.outer.data();
+  const float* columnValue = f.lower.value.data();
   if (b == 0) {  // one task
-    forwardRows(f.rows, 0, n, y);
-    backwardColumns(f.lower, inverseD, 0, n, y);
+    forwardRows(outer, rowIndex, value, 0, n, y);
+    backwardColumns(columnOuter, columnIndex, columnValue, inverseD, 0, n, y);
     return;
   }
   // L y = b: the two independent ranges, each also summing the top rows' terms from its own
   // columns (into border_), then the top rows: y - first task's sum - second's - their own.
-  const int* outer = f.rows.outerIndexPtr();
-  const int* inner = f.rows.innerIndexPtr();
-  const float* value = f.rows.valuePtr();
   const Index top = n - b;
   double* border = border_.data();  // the first task's sums (top rows), then the second's
   exec.parallelFor(2, 1, [&](Index task, Index) {
-    forwardRows(f.rows, task == 0 ? 0 : a, task == 0 ? a : b, y);
+    forwardRows(outer, rowIndex, value, task == 0 ? 0 : a, task == 0 ? a : b, y);
     for (Index k = 0; k < top; ++k) {
       const int begin = task == 0 ? outer[b + k] : f.cuts[static_cast<size_t>(2 * k)];
-      store(border, task * top + k, rowSum(inner, value, begin, f.cuts[static_cast<size_t>(2 * k + task)], y));
+      store(border, task * top + k, rowSum(rowIndex, value, begin, f.cuts[static_cast<size_t>(2 * k + task)], y));
     }
   });
   for (Index k = 0; k < top; ++k) {
     const Index i = b + k;
-    const Row own = rowSum(inner, value, f.cuts[static_cast<size_t>(2 * k + 1)], outer[i + 1], y);
+    const Row own = rowSum(rowIndex, value, f.cuts[static_cast<size_t>(2 * k + 1)], outer[i + 1], y);
     store(y, i, ((load(y, i) - load(border, k)) - load(border, top + k)) - own);
   }
   // L^T x = D^-1 y: the top range first, then the two ranges.
-  backwardColumns(f.lower, inverseD, b, n, y);
+  backwardColumns(columnOuter, columnIndex, columnValue, inverseD, b, n, y);
   exec.parallelFor(2, 1, [&](Index task, Index) {
     if (task == 0)
-      backwardColumns(f.lower, inverseD, 0, a, y);
+      backwardColumns(columnOuter, columnIndex, columnValue, inverseD, 0, a, y);
     else
-      backwardColumns(f.lower, inverseD, a, b, y);
+      backwardColumns(columnOuter, columnIndex, columnValue, inverseD, a, b, y);
   });
 }
 

@@ -8,8 +8,9 @@
 // slack springs (where the Hessian has none) against what it assigns along them.
 //
 // P is factorised (Eigen's SimplicialLDLT, in double for both precisions) per (h, c); the
-// factor's entries are kept in float (8 bytes an entry with its row index instead of 12: the
-// solves stream the factor, so this is what they cost), D^-1 and every sum in double. A
+// factor's entries are kept in float beside a 16-bit row index up to 65536 particles, a
+// 32-bit one beyond (6 or 8 bytes an entry instead of 12: the solves stream the factor, so
+// this is what they cost), D^-1 and every sum in double. A
 // solve is then one with L~ D L~^T, still symmetric positive definite (a preconditioner),
 // leaving a residual with P of ~1e-6 of the right-hand side (tests/test_integrate_laplacian.cpp);
 // projective dynamics iterates in correction form, so its fixed point does not move. The two most recently used factors
@@ -47,8 +48,9 @@ class SpringLaplacianSolver {
  public:
   /// Finds the fill-reducing ordering (allocates). `model` must outlive the solver. `what`
   /// names the matrix in the error a failed factorisation throws ("implicit Euler: the
-  /// preconditioner's matrix").
-  SpringLaplacianSolver(const Model<S>& model, double theta, const char* what);
+  /// preconditioner's matrix"). `wideIndices`: 32-bit row indices even where 16 bits would
+  /// do (for tests: the path models over 65536 particles take).
+  SpringLaplacianSolver(const Model<S>& model, double theta, const char* what, bool wideIndices = false);
 
   /// Makes the factor for step h and drag c current: from the cache, or factorised now
   /// (allocates; returns true then).
@@ -69,7 +71,9 @@ class SpringLaplacianSolver {
   void solveBuffer(const Executor& exec) { solve(*current_, exec); }
 
   /// Entries of the current factor's strict lower triangle (0 before prepare()).
-  Index factorEntries() const { return current_ != nullptr ? static_cast<Index>(current_->lower.nonZeros()) : 0; }
+  Index factorEntries() const { return current_ != nullptr ? current_->lower.entries() : 0; }
+  /// Bytes of the current factor (both copies, D^-1 and the cuts; 0 before prepare()).
+  std::size_t factorBytes() const { return current_ != nullptr ? current_->bytes() : 0; }
   /// P's lower triangle (diagonal included) in the particles' order, for step h and drag c
   /// (allocates; for tests and benchmarks: peers factorise the same matrix).
   Eigen::SparseMatrix<double> matrix(double h, double drag) const { return assemble(h, drag); }
@@ -81,24 +85,47 @@ class SpringLaplacianSolver {
   std::array<Index, 2> split() const { return current_ != nullptr ? current_->split : std::array<Index, 2>{0, 0}; }
 
  private:
+  /// A triangle of the factor, compressed by columns or by rows: the entries of line k are
+  /// [outer[k], outer[k + 1]), their indices increasing. The indices take 16 bits when the
+  /// model has at most 65536 particles (narrow; 6 bytes an entry with its float value, the
+  /// solves at 128^2 are bound by streaming the factor), else 32 (wide).
+  struct Compressed {
+    std::vector<int> outer;
+    std::vector<std::uint16_t> narrow;
+    std::vector<int> wide;
+    std::vector<float> value;
+    Index entries() const { return static_cast<Index>(value.size()); }
+    int index(int p) const { return narrow.empty() ? wide[static_cast<size_t>(p)] : narrow[static_cast<size_t>(p)]; }
+    std::size_t bytes() const {
+      return outer.size() * sizeof(int) + narrow.size() * sizeof(std::uint16_t) + wide.size() * sizeof(int) +
+             value.size() * sizeof(float);
+    }
+  };
   struct Factor {
     double h = 0;  // 0: empty slot
     double drag = -1;
     std::uint64_t lastUse = 0;
-    Eigen::SparseMatrix<float> lower;  // strictly lower triangle of L (unit diagonal), by columns
-    Eigen::SparseMatrix<float> rows;   // the same, by rows (L^T by columns)
+    Compressed lower;                  // strictly lower triangle of L (unit diagonal), by columns
+    Compressed rows;                   // the same, by rows (L^T by columns)
     Eigen::VectorXd inverseD;          // 1 / D
     std::array<Index, 2> split{0, 0};  // [0, split[0]) and [split[0], split[1]): independent
     std::vector<int> cuts;             // per top row: where its first and second task's terms end
+    std::size_t bytes() const {
+      return lower.bytes() + rows.bytes() + static_cast<std::size_t>(inverseD.size()) * sizeof(double) +
+             cuts.size() * sizeof(int);
+    }
   };
   Eigen::SparseMatrix<double> assemble(double h, double drag) const;
   void solve(const Factor& f, const Executor& exec);
-  static bool independent(const Eigen::SparseMatrix<float>& lower, std::array<Index, 2> split);
+  template <class I>
+  void solveWith(const Factor& f, const I* rowIndex, const I* columnIndex, const Executor& exec);
+  static bool independent(const Compressed& lower, std::array<Index, 2> split);
 
   const Model<S>* model_;
   double theta_;
   const char* what_;
   Index n_;
+  bool narrow_;                      // 16-bit row indices
   std::vector<unsigned char> free_;  // 1 for free particles
   std::vector<int> position_;        // particle -> row in the factor's order
   // Aligned to Eigen's largest alignment (64 bytes), so no row of four straddles a line.
