@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "integrate/spring_laplacian_solver.hpp"
+#include "support/test_support.hpp"
 #include "weft/weft.hpp"
 
 using namespace weft;
@@ -40,37 +41,13 @@ ModelAndState<double> twoRopes(Index k) {
   return b.build();
 }
 
-// `sheets` triangulated (k x k)-vertex sheets side by side, sharing no spring.
-ModelAndState<double> meshCloth(Index k, int sheets = 1) {
-  ModelBuilder<double> b;
-  for (int sheet = 0; sheet < sheets; ++sheet) {
-    TriangleMesh mesh;
-    for (Index r = 0; r < k; ++r)
-      for (Index c = 0; c < k; ++c)
-        mesh.vertices.push_back(Vec3d(0.05 * static_cast<double>(c) + 2.0 * sheet, 0, 0.05 * static_cast<double>(r)));
-    for (Index r = 0; r + 1 < k; ++r)
-      for (Index c = 0; c + 1 < k; ++c) {
-        const Index a = r * k + c;
-        mesh.triangles.push_back({a, a + 1, a + k + 1});
-        mesh.triangles.push_back({a, a + k + 1, a + k});
-      }
-    ClothMeshSpec spec;
-    spec.structural = {4000, 0.05};
-    const Index first = b.particleCount();
-    addClothMesh(b, mesh, spec);
-    b.pin(first);
-    b.pin(first + k - 1);
-  }
-  return b.build();
-}
-
 std::vector<Case> cases() {
   std::vector<Case> out;
   out.push_back({"grid flag 40x40", makeFlag<double>(40)});
-  out.push_back({"triangle mesh 17x17", meshCloth(17)});
+  out.push_back({"triangle mesh 17x17", test::makeMeshSheets(17)});
   out.push_back({"rope of 50", makeRope<double>(50)});
   out.push_back({"two ropes, one pinned end", twoRopes(25)});
-  out.push_back({"two triangle meshes 30x30", meshCloth(30, 2)});
+  out.push_back({"two triangle meshes 30x30", test::makeMeshSheets(30, 2)});
   out.push_back({"grid flag 64x64 (two tasks)", makeFlag<double>(64)});
   return out;
 }
@@ -194,7 +171,7 @@ TEST(SpringLaplacianSolver, SplitsAGridIntoTwoBalancedTasksAndASmallSeparator) {
 }
 
 TEST(SpringLaplacianSolver, GivesTwoSeparateClothsOneTaskEachWithoutASeparator) {
-  const ModelAndState<double> two = meshCloth(40, 2);
+  const ModelAndState<double> two = test::makeMeshSheets(40, 2);
   detail::SpringLaplacianSolver<double> solver(two.model, 1.0, "test");
   solver.prepare(1.0 / 60, 0.0);
   const Index n = two.model.particleCount();

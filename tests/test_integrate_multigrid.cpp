@@ -28,32 +28,11 @@ struct Case {
   ModelAndState<double> cloth;
 };
 
-// A cloth from a triangulated (k x k)-vertex sheet: the same connectivity as a grid but
-// without a GridLayout, so the multigrid aggregates by pairwise matching.
-ModelAndState<double> meshCloth(Index k) {
-  TriangleMesh mesh;
-  for (Index r = 0; r < k; ++r)
-    for (Index c = 0; c < k; ++c)
-      mesh.vertices.push_back(Vec3d(0.05 * static_cast<double>(c), 0, 0.05 * static_cast<double>(r)));
-  for (Index r = 0; r + 1 < k; ++r)
-    for (Index c = 0; c + 1 < k; ++c) {
-      const Index a = r * k + c;
-      mesh.triangles.push_back({a, a + 1, a + k + 1});
-      mesh.triangles.push_back({a, a + k + 1, a + k});
-    }
-  ModelBuilder<double> b;
-  ClothMeshSpec spec;
-  spec.structural = {4000, 0.05};
-  addClothMesh(b, mesh, spec);
-  b.pin(0);
-  b.pin(k - 1);
-  return b.build();
-}
-
 std::vector<Case> cases() {
   std::vector<Case> out;
   out.push_back({"grid flag 12x12, top row pinned", makeFlag<double>(12)});
-  out.push_back({"triangle mesh 10x10, two corners pinned", meshCloth(10)});
+  // (no GridLayout: the multigrid aggregates by pairwise matching)
+  out.push_back({"triangle mesh 10x10, two corners pinned", test::makeMeshSheets(10)});
   out.push_back({"rope of 30", makeRope<double>(30)});
   return out;
 }

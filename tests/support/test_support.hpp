@@ -178,6 +178,32 @@ ModelAndState<S> makeUndampedFlag(Index size) {
   return builder.build();
 }
 
+/// `sheets` triangulated (k x k)-vertex sheets 5 cm apart per vertex, side by side 2 m
+/// apart and sharing no spring, each pinned at its first row's two corners: the grid's
+/// connectivity without a GridLayout (the general paths, not the grid ones).
+inline ModelAndState<double> makeMeshSheets(Index k, int sheets = 1) {
+  ModelBuilder<double> b;
+  for (int sheet = 0; sheet < sheets; ++sheet) {
+    TriangleMesh mesh;
+    for (Index r = 0; r < k; ++r)
+      for (Index c = 0; c < k; ++c)
+        mesh.vertices.push_back(Vec3d(0.05 * static_cast<double>(c) + 2.0 * sheet, 0, 0.05 * static_cast<double>(r)));
+    for (Index r = 0; r + 1 < k; ++r)
+      for (Index c = 0; c + 1 < k; ++c) {
+        const Index a = r * k + c;
+        mesh.triangles.push_back({a, a + 1, a + k + 1});
+        mesh.triangles.push_back({a, a + k + 1, a + k});
+      }
+    ClothMeshSpec spec;
+    spec.structural = {4000, 0.05};
+    const Index first = b.particleCount();
+    addClothMesh(b, mesh, spec);
+    b.pin(first);
+    b.pin(first + k - 1);
+  }
+  return b.build();
+}
+
 /// Options for a run of the flag scene.
 inline SimulationOptions flagOptions(IntegratorKind kind, ForceStrategy strategy, int threads, double dt) {
   SimulationOptions o;
