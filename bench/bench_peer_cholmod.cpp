@@ -8,19 +8,24 @@
 //       one solve P X = B with the three coordinates as three columns (cholmod_solve2, its
 //       workspace reused: nothing allocated after the first call). O = 0: CHOLMOD's own
 //       ordering (its default: AMD, and METIS where AMD's fill is high); O = 1: weft's
-//       (nested dissection + AMD, given as is, no postordering). K = 0: simplicial LDL^T
+//       (nested dissection + AMD, which CHOLMOD postorders as it does its own: the same
+//       fill, supernodes as large as the tree allows). K = 0: simplicial LDL^T
 //       (what Eigen's SimplicialLDLT and weft store); K = 1: supernodal LL^T (dense blocks
 //       through the BLAS Debian links, reference BLAS unless OpenBLAS is installed).
 //   BM_Peer_Cholmod_Factor/size:N/ordering:O/supernodal:K
 //       one numeric factorisation (cholmod_factorize) with the analysis kept, what a new
-//       time step costs.
+//       time step costs (weft's BM_Projective_Factor also assembles and permutes P and
+//       analyses its pattern each time: it times all of prepare()).
 // Counters: factor_entries (strictly below the diagonal, weft's factorEntries() counts the
-// same), allocs_per_solve (operator new only; CHOLMOD allocates through malloc), and for
+// same; for the supernodal factor the entries of the ideal pattern, not the explicit
+// zeros its blocks store besides), allocs_per_solve (operator new only; CHOLMOD allocates
+// through malloc), and for
 // the solve max_difference_vs_weft, the largest difference from weft's solve of the same
 // right-hand side relative to the largest coordinate of the solution (weft keeps its
 // factor's entries in float: ~1e-6 expected).
-// CHOLMOD runs on one thread here (its simplicial code is serial; the supernodal solve
-// with three right-hand sides is too small for a threaded BLAS to split).
+// Run it with OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 to compare one thread with one
+// thread: Debian's CHOLMOD is built with OpenMP (parts of its supernodal factorisation)
+// and OpenBLAS threads its BLAS calls; the simplicial code is serial.
 #include <benchmark/benchmark.h>
 #include <suitesparse/cholmod.h>
 
@@ -50,6 +55,10 @@ class CholmodSystem {
     const Eigen::SparseMatrix<double> p = solver_.matrix(kStep, 0.0);  // lower triangle, compressed
     n_ = static_cast<std::size_t>(p.rows());
     A_ = cholmod_allocate_sparse(n_, n_, static_cast<std::size_t>(p.nonZeros()), 1, 1, -1, CHOLMOD_REAL, &common_);
+    if (A_ == nullptr) {
+      release();
+      throw std::runtime_error("CHOLMOD could not allocate the flag's P");
+    }
     auto* columns = static_cast<int*>(A_->p);
     auto* rows = static_cast<int*>(A_->i);
     auto* values = static_cast<double*>(A_->x);
@@ -62,21 +71,36 @@ class CholmodSystem {
         order[static_cast<std::size_t>(solver_.positions()[i])] = static_cast<int>(i);
       common_.nmethods = 1;
       common_.method[0].ordering = CHOLMOD_GIVEN;
-      common_.postorder = 0;
       L_ = cholmod_analyze_p(A_, order.data(), nullptr, 0, &common_);
     } else {
       L_ = cholmod_analyze(A_, &common_);
     }
-    if (L_ == nullptr || !factorize()) throw std::runtime_error("CHOLMOD could not factorise the flag's P");
+    if (L_ == nullptr || !factorize()) {
+      release();
+      throw std::runtime_error("CHOLMOD could not factorise the flag's P");
+    }
     // Entries strictly below the diagonal: lnz counts L's nonzeros with the diagonal.
     factorEntries_ = common_.lnz - static_cast<double>(n_);
     B_ = cholmod_allocate_dense(n_, 3, n_, CHOLMOD_REAL, &common_);
+    if (B_ == nullptr) {
+      release();
+      throw std::runtime_error("CHOLMOD could not allocate the right-hand side");
+    }
     auto* b = static_cast<double*>(B_->x);
     for (std::size_t i = 0; i < n_; ++i)
       for (std::size_t c = 0; c < 3; ++c)
         b[c * n_ + i] = flag_.state.x(static_cast<weft::Index>(i), static_cast<weft::Index>(c));
   }
-  ~CholmodSystem() {
+  ~CholmodSystem() { release(); }
+  CholmodSystem(const CholmodSystem&) = delete;
+  CholmodSystem& operator=(const CholmodSystem&) = delete;
+
+  bool factorize() { return cholmod_factorize(A_, L_, &common_) != 0 && common_.status == CHOLMOD_OK; }
+  // Frees whatever was allocated (the cholmod_free_* calls accept null) and CHOLMOD's
+  // workspace; once only.
+  void release() {
+    if (released_) return;
+    released_ = true;
     cholmod_free_dense(&X_, &common_);
     cholmod_free_dense(&Y_, &common_);
     cholmod_free_dense(&E_, &common_);
@@ -85,10 +109,6 @@ class CholmodSystem {
     cholmod_free_sparse(&A_, &common_);
     cholmod_finish(&common_);
   }
-  CholmodSystem(const CholmodSystem&) = delete;
-  CholmodSystem& operator=(const CholmodSystem&) = delete;
-
-  bool factorize() { return cholmod_factorize(A_, L_, &common_) != 0 && common_.status == CHOLMOD_OK; }
   bool solve() { return cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &common_) != 0; }
   double factorEntries() const { return factorEntries_; }
   const char* orderingName() const {
@@ -139,6 +159,7 @@ class CholmodSystem {
   cholmod_dense* Y_ = nullptr;
   cholmod_dense* E_ = nullptr;
   double factorEntries_ = 0;
+  bool released_ = false;
 };
 
 void BM_Peer_Cholmod_Solve(benchmark::State& st) {

@@ -87,8 +87,9 @@ class SpringLaplacianSolver {
  private:
   /// A triangle of the factor, compressed by columns or by rows: the entries of line k are
   /// [outer[k], outer[k + 1]), their indices increasing. The indices take 16 bits when the
-  /// model has at most 65536 particles (narrow; 6 bytes an entry with its float value, the
-  /// solves at 128^2 are bound by streaming the factor), else 32 (wide).
+  /// model has at most 65536 particles and the solver was not asked for wide indices
+  /// (narrow; 6 bytes an entry with its float value, the solves at 128^2 are bound by
+  /// streaming the factor), else 32 (wide).
   struct Compressed {
     std::vector<int> outer;
     std::vector<std::uint16_t> narrow;

@@ -36,8 +36,9 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
       return isFloat ? Rates{158, 85} : Rates{302, 154};
     case IntegratorKind::Projective:
       // The global matrix's factor dominates: ~76 entries a particle at 128^2, growing
-      // slowly with the size, kept as float values and 16-bit row indices by columns and
-      // by rows (12 bytes an entry), and in double while it is made: that is the peak.
+      // slowly with the size, kept as float values and row indices by columns and by rows
+      // (12 bytes an entry with 16-bit indices, up to 65536 particles; 16 beyond), and in
+      // double while it is made: that is the peak.
       // Peaks of `weft run flag --integrator projective` (2026-11-26, the same with 16-bit
       // indices on 2026-11-27): 62 MiB at 128^2, 228 MiB at 256^2.
       return isFloat ? Rates{2600, 62} : Rates{2700, 110};
