@@ -185,6 +185,50 @@ Eigen::SparseMatrix<double> SpringLaplacianSolver<S>::assemble(double h, double 
 }
 
 template <class S>
+template <class I>
+void SpringLaplacianSolver<S>::compressColumns(const Eigen::SparseMatrix<double>& L, Compressed& lower,
+                                               std::vector<I>& lowerIndex) {
+  // L's strict lower triangle by columns (Eigen keeps L's unit diagonal implicit, its
+  // entries by increasing row within each column), entries rounded to float.
+  const Index n = L.cols();
+  const int* outer = L.outerIndexPtr();
+  const int* inner = L.innerIndexPtr();
+  const double* value = L.valuePtr();
+  const auto entries = static_cast<size_t>(outer[n] - outer[0]);
+  lower.outer.resize(static_cast<size_t>(n + 1));
+  for (Index j = 0; j <= n; ++j) lower.outer[static_cast<size_t>(j)] = outer[j] - outer[0];
+  lower.value.resize(entries);
+  lowerIndex.resize(entries);
+  for (Index j = 0; j < n; ++j)
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      const auto q = static_cast<size_t>(p - outer[0]);
+      lower.value[q] = static_cast<float>(value[p]);
+      lowerIndex[q] = static_cast<I>(inner[p]);
+    }
+}
+
+template <class S>
+template <class I>
+void SpringLaplacianSolver<S>::transpose(const Compressed& lower, const std::vector<I>& lowerIndex, Compressed& rows,
+                                         std::vector<I>& rowIndex) {
+  // A sweep over the columns in order gives each row its entries by increasing column.
+  const auto n = static_cast<Index>(lower.outer.size()) - 1;
+  const auto entries = lowerIndex.size();
+  rows.outer.assign(static_cast<size_t>(n + 1), 0);
+  for (const I i : lowerIndex) ++rows.outer[static_cast<size_t>(i) + 1];
+  for (Index i = 0; i < n; ++i) rows.outer[static_cast<size_t>(i + 1)] += rows.outer[static_cast<size_t>(i)];
+  std::vector<int> next(rows.outer.begin(), rows.outer.end() - 1);
+  rows.value.resize(entries);
+  rowIndex.resize(entries);
+  for (Index j = 0; j < n; ++j)
+    for (int p = lower.outer[static_cast<size_t>(j)]; p < lower.outer[static_cast<size_t>(j + 1)]; ++p) {
+      const auto q = static_cast<size_t>(next[static_cast<size_t>(lowerIndex[static_cast<size_t>(p)])]++);
+      rows.value[q] = lower.value[static_cast<size_t>(p)];
+      rowIndex[q] = static_cast<I>(j);
+    }
+}
+
+template <class S>
 bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
   ++useClock_;
   for (Factor& f : cache_)
@@ -209,51 +253,16 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
       throw std::runtime_error(std::string(what_) +
                                " is not positive definite (a particle of zero mass that is not pinned?)");
-    // L's strict lower triangle, entries rounded to float (Eigen keeps L's unit diagonal
-    // implicit, its entries sorted by row within each column).
-    const Eigen::SparseMatrix<double>& L = ldlt.matrixL().nestedExpression();
-    const bool narrow = narrow_;
-    f.lower.outer.assign(L.outerIndexPtr(), L.outerIndexPtr() + n_ + 1);
-    const int* outer = L.outerIndexPtr();
-    const int* inner = L.innerIndexPtr();
-    const double* value = L.valuePtr();
-    const auto entries = static_cast<size_t>(outer[n_] - outer[0]);
-    f.lower.value.resize(entries);
-    (narrow ? f.lower.narrow.resize(entries) : f.lower.wide.resize(entries));
-    for (Index j = 0; j < n_; ++j)
-      for (int p = outer[j]; p < outer[j + 1]; ++p) {
-        const auto q = static_cast<size_t>(p - outer[0]);
-        f.lower.value[q] = static_cast<float>(value[p]);
-        if (narrow)
-          f.lower.narrow[q] = static_cast<std::uint16_t>(inner[p]);
-        else
-          f.lower.wide[q] = inner[p];
-      }
-    for (int& o : f.lower.outer) o -= outer[0];
+    if (narrow_)
+      compressColumns(ldlt.matrixL().nestedExpression(), f.lower, f.lower.narrow);
+    else
+      compressColumns(ldlt.matrixL().nestedExpression(), f.lower, f.lower.wide);
     f.inverseD = ldlt.vectorD().cwiseInverse();
   }
-  // The transposed copy: each row's entries in increasing column, as a sweep over the
-  // columns in order gives them.
-  {
-    const Compressed& c = f.lower;
-    Compressed& r = f.rows;
-    const auto entries = static_cast<size_t>(c.entries());
-    r.outer.assign(static_cast<size_t>(n_ + 1), 0);
-    for (size_t p = 0; p < entries; ++p) ++r.outer[static_cast<size_t>(c.index(static_cast<int>(p))) + 1];
-    for (Index i = 0; i < n_; ++i) r.outer[static_cast<size_t>(i + 1)] += r.outer[static_cast<size_t>(i)];
-    std::vector<int> next(r.outer.begin(), r.outer.end() - 1);
-    r.value.resize(entries);
-    (c.narrow.empty() ? r.wide.resize(entries) : r.narrow.resize(entries));
-    for (Index j = 0; j < n_; ++j)
-      for (int p = c.outer[static_cast<size_t>(j)]; p < c.outer[static_cast<size_t>(j + 1)]; ++p) {
-        const auto q = static_cast<size_t>(next[static_cast<size_t>(c.index(p))]++);
-        r.value[q] = c.value[static_cast<size_t>(p)];
-        if (c.narrow.empty())
-          r.wide[q] = static_cast<int>(j);
-        else
-          r.narrow[q] = static_cast<std::uint16_t>(j);
-      }
-  }
+  if (narrow_)
+    transpose(f.lower, f.lower.narrow, f.rows, f.rows.narrow);
+  else
+    transpose(f.lower, f.lower.wide, f.rows, f.rows.wide);
   f.h = h;
   f.drag = drag;
   f.lastUse = useClock_;
@@ -379,7 +388,7 @@ void backwardColumns(const int* outer, const I* inner, const float* value, const
 
 template <class S>
 void SpringLaplacianSolver<S>::solve(const Factor& f, const Executor& exec) {
-  if (!f.rows.narrow.empty())
+  if (narrow_)
     solveWith(f, f.rows.narrow.data(), f.lower.narrow.data(), exec);
   else
     solveWith(f, f.rows.wide.data(), f.lower.wide.data(), exec);

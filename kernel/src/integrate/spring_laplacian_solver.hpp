@@ -117,6 +117,13 @@ class SpringLaplacianSolver {
     }
   };
   Eigen::SparseMatrix<double> assemble(double h, double drag) const;
+  /// The factor by columns from L (Eigen's), with indices of type I (`lowerIndex`: the
+  /// vector of `lower` that type takes), and its transposed copy by rows.
+  template <class I>
+  static void compressColumns(const Eigen::SparseMatrix<double>& L, Compressed& lower, std::vector<I>& lowerIndex);
+  template <class I>
+  static void transpose(const Compressed& lower, const std::vector<I>& lowerIndex, Compressed& rows,
+                        std::vector<I>& rowIndex);
   void solve(const Factor& f, const Executor& exec);
   template <class I>
   void solveWith(const Factor& f, const I* rowIndex, const I* columnIndex, const Executor& exec);

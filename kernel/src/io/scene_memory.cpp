@@ -39,11 +39,15 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
       // slowly with the size, kept as float values and row indices by columns and by rows
       // (12 bytes an entry with 16-bit indices, up to 65536 particles; 16 beyond), and in
       // double while it is made: that is the peak.
-      // Peaks of `weft run flag --integrator projective` (2026-11-26, the same with 16-bit
-      // indices on 2026-11-27): 62 MiB at 128^2, 228 MiB at 256^2.
-      return isFloat ? Rates{2600, 62} : Rates{2700, 110};
+      // Peaks of `weft run flag --integrator projective --steps 3` with 16-bit indices
+      // (2026-11-27): 48.4 / 181.5 MiB at 128^2 / 256^2 in double, 45.9 / 173.8 in float
+      // (62 and 228 in double with 32-bit indices). The fill per particle grows with the
+      // size, so the rates put the estimate between: 51.8 / 172.8 MiB in double, 49.0 /
+      // 161.2 in float (the factor is double in both precisions; the float spring rate is
+      // the smaller one of the Model's arrays).
+      return isFloat ? Rates{2000, 62} : Rates{1900, 110};
   }
-  return {2700, 154};  // the largest
+  return {2000, 154};  // the largest
 }
 // While the model is built, the builder's arrays (in double: 7 values and a pin flag per
 // particle, 33 bytes per spring, 12 per triangle) and the Model's particle arrays and state
