@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "integrate/aggregation_multigrid.hpp"
 #include "integrate/spring_laplacian_solver.hpp"
 #include "textbook.hpp"
 #include "weft/weft.hpp"
@@ -394,6 +395,41 @@ BENCHMARK(BM_Jacobian_SystemProduct<double>)
 BENCHMARK(BM_Jacobian_SystemProduct<float>)
     ->ArgNames({"size", "threads"})
     ->ArgsProduct({{128}, {1, 2}})
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+
+// ---------------------------------------------------------------------------------------
+// BM_Jacobian_Linearize: what an implicit Euler step pays once before its CG, besides the
+// force evaluation: the springs' linearisation and A's diagonal blocks (SpringJacobian::
+// linearize), and with multigrid:1 the multigrid preconditioner's levels (every coarse
+// operator, the smoothers' inverses, the coarsest factor), on the size^2 flag stretched by
+// 2 %, dt = 1/60, by thread count.
+// ---------------------------------------------------------------------------------------
+
+void BM_Jacobian_Linearize(benchmark::State& st) {
+  const auto size = static_cast<weft::Index>(st.range(0));
+  const weft::ModelAndState<double> flag = weft::makeFlag<double>(size);
+  const weft::Executor exec(static_cast<int>(st.range(1)));
+  const bool multigrid = st.range(2) != 0;
+  weft::SpringJacobian<double> jacobian(flag.model);
+  weft::detail::AggregationMultigrid<double> hierarchy(flag.model);
+  const weft::Vec3Array<double> x = flag.state.x * 1.02;
+  const std::int64_t allocationsBefore = weftbench::allocationCount();
+  std::int64_t runs = 0;
+  for (auto _ : st) {
+    exec.run([&] {
+      jacobian.linearize(x, 1.0 / 60, exec, 0.01);
+      if (multigrid) hierarchy.prepare(jacobian, exec);
+    });
+    ++runs;
+  }
+  benchmark::DoNotOptimize(jacobian.diagonal().data());
+  st.counters["allocs_per_run"] = static_cast<double>(weftbench::allocationCount() - allocationsBefore) /
+                                  static_cast<double>(std::max<std::int64_t>(runs, 1));
+}
+BENCHMARK(BM_Jacobian_Linearize)
+    ->ArgNames({"size", "threads", "multigrid"})
+    ->ArgsProduct({{128}, {1, 2}, {0, 1}})
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 

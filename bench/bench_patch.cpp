@@ -4,8 +4,15 @@
 // BM_Peer_Bullet_Cloth (bench_peer_bullet_cloth.cpp, where Bullet is found), so the ratios
 // and the stretch figures come out of one run.
 //
-//   implicit Euler (block-Jacobi and multigrid preconditioners) and projective dynamics
-//   (10 iterations): one step of 1/600 s a frame;
+//   implicit Euler (block-Jacobi and multigrid preconditioners) and projective dynamics:
+//   one step of 1/600 s a frame; their second argument is the solver's setting, the CG
+//   tolerance 10^-k (cg_tol_exp:k; 6 is the default, 1e-6) or projective dynamics'
+//   iterations per step (pd_iterations, 10 the default). What a looser setting costs in accuracy is the
+//   counter error_vs_converged_m: the largest distance of a particle at the end of the span
+//   from where the same method puts it with its solve converged (CG to 1e-10, or 100
+//   projective iterations), computed once per process outside the timing;
+//   every method: error_vs_rk4_m, the same distance from RK4 in double with twice its
+//   probed substeps (below), what the method itself costs in accuracy;
 //   symplectic Euler and RK4 (explicit, unstable at 1/600 s on this cloth): K equal steps of
 //   1/(600 K) s a frame, K the smallest count at which the whole span passes the stability
 //   check (probed once per method and precision, on 2 threads, from ceil(frame / the kernel's
@@ -25,15 +32,39 @@ using weftbench::kPatchFrame;
 using weftbench::kPatchSize;
 using weftbench::kSpanFrames;
 
+/// The solver setting of an implicit method: the CG tolerance 10^-setting (implicit Euler)
+/// or the iterations per step (projective dynamics); 0 = the default.
 weft::SimulationOptions patchOptions(weft::IntegratorKind kind, int substeps, int threads,
-                                     weft::Preconditioner preconditioner = weft::Preconditioner::BlockJacobi) {
+                                     weft::Preconditioner preconditioner = weft::Preconditioner::BlockJacobi,
+                                     int setting = 0) {
   weft::SimulationOptions options;
   options.integrator = kind;
   options.integration.preconditioner = preconditioner;
   options.threads = threads;
   options.dt = kPatchFrame / substeps;
   options.integration.adaptive = false;
+  if (setting > 0 && kind == weft::IntegratorKind::ImplicitEuler)
+    options.integration.linearTolerance = std::pow(10.0, -setting);
+  if (setting > 0 && kind == weft::IntegratorKind::Projective) options.integration.projectiveIterations = setting;
   return options;
+}
+
+/// The settings of the converged reference: CG to 1e-10, 100 projective iterations.
+constexpr int kConvergedCg = 10, kConvergedProjective = 100;
+
+/// The patch after the span with the method's solve converged (computed once per method).
+template <class S>
+const weft::Vec3Array<S>& convergedEnd(weft::IntegratorKind kind, weft::Preconditioner preconditioner) {
+  static std::map<std::pair<int, int>, weft::Vec3Array<S>> cache;
+  const std::pair<int, int> key{static_cast<int>(kind), static_cast<int>(preconditioner)};
+  if (auto it = cache.find(key); it != cache.end()) return it->second;
+  const int setting = kind == weft::IntegratorKind::Projective ? kConvergedProjective : kConvergedCg;
+  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(kind, 1, 2, preconditioner, setting));
+  const weft::State<S> rest = sim.state();  // the protocol of BM_Patch: one step, back to rest
+  sim.step();
+  sim.setState(rest);
+  sim.run(kSpanFrames);
+  return cache[key] = sim.state().x;
 }
 
 /// Steps per 1/600 s frame: 1 for the implicit methods; for the explicit ones the fewest
@@ -58,11 +89,34 @@ int substepsPerFrame(weft::IntegratorKind kind) {
   return cache[static_cast<int>(kind)] = k;
 }
 
+/// The patch after the span under RK4 in double with twice its probed substeps: the
+/// reference for every method's error.
+const weft::Vec3Array<double>& rk4End() {
+  static const weft::Vec3Array<double> end = [] {
+    const int substeps = 2 * substepsPerFrame<double>(weft::IntegratorKind::Rk4);
+    weft::Simulation<double> sim(weft::makeFlag<double>(kPatchSize),
+                                 patchOptions(weft::IntegratorKind::Rk4, substeps, 2));
+    sim.run(static_cast<std::int64_t>(substeps) * kSpanFrames);
+    return sim.state().x;
+  }();
+  return end;
+}
+
+/// The largest distance between a particle's positions in a and b, m.
+template <class A, class B>
+double largestDistance(const A& a, const B& b) {
+  double worst = 0;
+  for (weft::Index i = 0; i < a.rows(); ++i)
+    worst = std::max(worst, (a.row(i).template cast<double>() - b.row(i).template cast<double>()).norm());
+  return worst;
+}
+
 template <class S, weft::IntegratorKind Kind, weft::Preconditioner Preconditioner = weft::Preconditioner::BlockJacobi>
 void BM_Patch(benchmark::State& st) {
   const int threads = static_cast<int>(st.range(0));
+  const int setting = weft::integratorIsExplicit(Kind) ? 0 : static_cast<int>(st.range(1));
   const int substeps = substepsPerFrame<S>(Kind);
-  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(Kind, substeps, threads, Preconditioner));
+  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(Kind, substeps, threads, Preconditioner, setting));
   // Warm up (projective dynamics factorises its matrix in its first step), then back to rest.
   const weft::State<S> rest = sim.state();
   sim.step();
@@ -87,16 +141,26 @@ void BM_Patch(benchmark::State& st) {
   // Implicit Euler: CG iterations; projective dynamics: solves (its iteration count).
   st.counters["cg_iterations_per_step"] =
       static_cast<double>(sim.totalWork().linearIterations - iterationsBefore) / steps;
+  // After the timed loop: the references run once per process, untimed.
+  if (!weft::integratorIsExplicit(Kind))
+    st.counters["error_vs_converged_m"] = largestDistance(sim.state().x, convergedEnd<S>(Kind, Preconditioner));
+  st.counters["error_vs_rk4_m"] = largestDistance(sim.state().x, rk4End());
 }
 
 // The explicit methods on 1 and 2 threads; the implicit ones (a frame costs 100x more) on
-// 2 only, to keep the run short (projective dynamics' solve is serial: 1 thread is within
-// noise of 2 in BM_Projective_Frame; implicit Euler's CG is ~1.6x slower on 1).
+// 2 only, to keep the run short.
 void explicitArgs(benchmark::internal::Benchmark* b) {
   b->ArgName("threads")->Arg(1)->Arg(2)->Iterations(kSpanFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
 }
+// Implicit Euler: CG tolerances 10^-k; the default, 1e-6, first.
 void implicitArgs(benchmark::internal::Benchmark* b) {
-  b->ArgName("threads")->Arg(2)->Iterations(kSpanFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
+  b->ArgNames({"threads", "cg_tol_exp"})->Iterations(kSpanFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
+  for (const int k : {6, 4, 3, 2}) b->Args({2, k});
+}
+// Projective dynamics: iterations per step (Bullet's soft body runs 1, 4 and 10); the default, 10, first.
+void projectiveArgs(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"threads", "pd_iterations"})->Iterations(kSpanFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
+  for (const int k : {10, 4, 1}) b->Args({2, k});
 }
 
 using weft::IntegratorKind;
@@ -110,6 +174,6 @@ WEFT_PATCH(BM_Patch_Implicit_double, implicitArgs, double, IntegratorKind::Impli
 // Implicit Euler with the multigrid preconditioner (the one above uses the default, block-Jacobi).
 WEFT_BENCHMARK_AS(BM_Patch_ImplicitMultigrid_double, implicitArgs,
                   BM_Patch<double, IntegratorKind::ImplicitEuler, weft::Preconditioner::Multigrid>);
-WEFT_PATCH(BM_Patch_Projective_double, implicitArgs, double, IntegratorKind::Projective);
+WEFT_PATCH(BM_Patch_Projective_double, projectiveArgs, double, IntegratorKind::Projective);
 
 }  // namespace

@@ -625,6 +625,11 @@ TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
   std::vector<std::string> runs;
   for (const std::string& name : builtinSceneNames()) runs.push_back(name);
   runs.push_back("flag --size 256 --integrator implicit");  // the arrays dominate, not the process
+  // The preconditioners beyond block-Jacobi keep their own structures (a hierarchy, a factor).
+  for (const char* p : {"multigrid", "projective"})
+    for (const char* precision : {"double", "float"})
+      runs.push_back(std::string("flag --size 128 --integrator implicit --cg-preconditioner ") + p + " --precision " +
+                     precision);
   // The factor dominates (its bytes an entry follow the solver's storage: re-measure the
   // rates in scene_memory.cpp when that changes).
   runs.push_back("flag --size 128 --integrator projective");

@@ -654,6 +654,65 @@ TEST(SpringJacobian, ProductsMatchFiniteDifferencesOfTheForce) {
     }
 }
 
+TEST(SpringJacobian, BlocksAreEachSpringsCouplingAndSumToTheDiagonalBlocks) {
+  // On a grid model (stencil products) and a mesh model (products through the incidence
+  // lists), stretched, with random velocities and a drag: column c of the product with
+  // e_(i, c) is column c of A's blocks in row i, so (A e_(a, c))_b = -B_s e_c for a spring
+  // s = (a, b) (the only one joining them), and A's diagonal block of i is what
+  // diagonal() and offDiagonal() say, and (m_i + h drag) I plus the blocks of i's springs.
+  ModelAndState<double> grid = makeFreeFlag<double>(6);
+  ModelAndState<double> mesh = makeMeshSheets(6);
+  for (ModelAndState<double>* cloth : {&grid, &mesh}) {
+    SCOPED_TRACE(cloth == &grid ? "grid" : "mesh");
+    ASSERT_EQ(cloth->model.grid().has_value(), cloth == &grid);
+    cloth->state.x *= 1.1;
+    addNoise<double>(cloth->state.x, 0.002, 11);
+    const Model<double>& model = cloth->model;
+    const Index n = model.particleCount();
+    const Executor exec(2);
+    const double h = 0.01, drag = 0.3;
+    SpringJacobian<double> jacobian(model);
+    jacobian.linearize(cloth->state.x, h, exec, drag);
+    const double* blocks = jacobian.blocks();
+    const auto column = [&](Index i, int c) {
+      Vec3Array<double> e = Vec3Array<double>::Zero(n, 3), y(n, 3);
+      e(i, c) = 1;
+      auto store = [&](Index b, Index m, const double* yx, const double* yy, const double* yz) {
+        for (Index t = 0; t < m; ++t) y.row(b + t) << yx[t], yy[t], yz[t];
+      };
+      jacobian.systemProduct(e, makeSink<double>(store), exec);
+      return y;
+    };
+    // A symmetric block from its six stored numbers, xx yy zz xy xz yz.
+    const auto full = [](const double* k) {
+      Eigen::Matrix3d m;
+      m << k[0], k[3], k[4], k[3], k[1], k[5], k[4], k[5], k[2];
+      return m;
+    };
+    const Springs<double>& sp = model.springs();
+    for (const Index s : {Index(0), Index(5), sp.count() / 2, sp.count() - 1}) {
+      const Index a = sp.a[s], b = sp.b[s];
+      for (int c = 0; c < 3; ++c) {
+        const Vec3Array<double> y = column(a, c);
+        for (int r = 0; r < 3; ++r) EXPECT_NEAR(-y(b, r), full(blocks + 6 * s)(r, c), 1e-12) << s << " " << r << c;
+      }
+    }
+    for (const Index i : {Index(0), Index(7), n / 2, n - 1}) {
+      Eigen::Matrix3d sum = Eigen::Matrix3d::Identity() * (model.mass()[i] + h * drag);
+      for (Index s = 0; s < sp.count(); ++s)
+        if (sp.a[s] == i || sp.b[s] == i) sum += full(blocks + 6 * s);
+      const double d[6] = {jacobian.diagonal()(i, 0),    jacobian.diagonal()(i, 1),    jacobian.diagonal()(i, 2),
+                           jacobian.offDiagonal()(i, 0), jacobian.offDiagonal()(i, 1), jacobian.offDiagonal()(i, 2)};
+      const double scale = sum.cwiseAbs().maxCoeff();
+      EXPECT_LT((full(d) - sum).cwiseAbs().maxCoeff(), 1e-12 * scale) << i;
+      for (int c = 0; c < 3; ++c) {
+        const Vec3Array<double> y = column(i, c);
+        for (int r = 0; r < 3; ++r) EXPECT_NEAR(y(i, r), full(d)(r, c), 1e-12 * scale) << i << " " << r << c;
+      }
+    }
+  }
+}
+
 TEST(SpringJacobian, CompressedSpringsAddNoNegativeStiffnessAndTheSystemIsPositive) {
   // Compressed to 70%: the transverse term ks (1 - r/L) would be negative; it is clamped,
   // so p^T A p > 0 for any p (A symmetric positive definite on the free particles).

@@ -353,13 +353,12 @@ template <class S>
 void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const SpringJacobian<S>* jacobian,
                                        const Executor& exec) {
   // The finer level's link k as a block: a spring's linearisation, or a coarse edge.
-  const S* dx = jacobian ? jacobian->directions().data() : nullptr;
-  const Index springs = jacobian ? jacobian->directions().rows() : 0;
+  const S* blocks = jacobian ? jacobian->blocks() : nullptr;
   auto link = [&](Index k) -> SymmetricBlock {
     if (finer) return finer->edge[static_cast<size_t>(k)];
-    const double x = dx[k], y = dx[springs + k], z = dx[2 * springs + k];
-    const double a = jacobian->alpha()[k], w = jacobian->beta()[k] + jacobian->gamma()[k];
-    return {a + w * x * x, a + w * y * y, a + w * z * z, w * x * y, w * x * z, w * y * z};
+    const S* b = blocks + 6 * static_cast<size_t>(k);
+    return {static_cast<double>(b[0]), static_cast<double>(b[1]), static_cast<double>(b[2]),
+            static_cast<double>(b[3]), static_cast<double>(b[4]), static_cast<double>(b[5])};
   };
   const auto edges = static_cast<Index>(level.edgeU.size());
   const Index edgeGrain = grainOf(edges, 1024);

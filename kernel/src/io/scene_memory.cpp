@@ -33,7 +33,9 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
     case IntegratorKind::Rk45:
       return isFloat ? Rates{258, 21} : Rates{511, 33};
     case IntegratorKind::ImplicitEuler:
-      return isFloat ? Rates{158, 85} : Rates{302, 154};
+      // With the block-Jacobi preconditioner (the default); the others add
+      // preconditionerBytesPerParticle. Each spring's 3x3 block is kept (six values).
+      return isFloat ? Rates{158, 93} : Rates{302, 170};
     case IntegratorKind::Projective:
       // The global matrix's factor dominates: ~76 entries a particle at 128^2, growing
       // slowly with the size, kept as float values and row indices by columns and by rows
@@ -48,6 +50,25 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
       return isFloat ? Rates{2000, 62} : Rates{1900, 110};
   }
   return {2000, 154};  // the largest
+}
+// Implicit Euler's preconditioners beyond block-Jacobi, per particle. Peaks of `weft run flag
+// --integrator implicit --cg-preconditioner P --steps 1 --threads 1` against block-Jacobi's
+// (2026-11-27, AMD EPYC): the multigrid hierarchy (its levels in double in both precisions)
+// 6.7 / 24.8 MiB more at 128^2 / 256^2 (431 / 397 bytes a particle, ~the same in float);
+// the projective preconditioner's factor (projective dynamics' solver) 26.9 / 134 MiB more
+// (1722 / 2147 bytes a particle, its fill growing with the size; ~the same in float).
+double preconditionerBytesPerParticle(const SimulationOptions& options) {
+  if (options.integrator != IntegratorKind::ImplicitEuler) return 0;
+  switch (options.integration.preconditioner) {
+    case Preconditioner::Multigrid:
+      return 410;
+    case Preconditioner::Projective:
+      return 1950;
+    case Preconditioner::Jacobi:
+    case Preconditioner::BlockJacobi:
+      break;
+  }
+  return 0;
 }
 // While the model is built, the builder's arrays (in double: 7 values and a pin flag per
 // particle, 33 bytes per spring, 12 per triangle) and the Model's particle arrays and state
@@ -100,7 +121,8 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
   const double particles = static_cast<double>(e.particles), springs = static_cast<double>(e.springs),
                triangles = static_cast<double>(e.triangles);
   const double simulation =
-      r.particle * particles + r.spring * springs + kBytesPerTriangle * triangles +
+      (r.particle + preconditionerBytesPerParticle(scene.simulation)) * particles + r.spring * springs +
+      kBytesPerTriangle * triangles +
       (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
       kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
   e.bytes = std::max(simulation, builderBytes(particles, springs, triangles, isFloat));

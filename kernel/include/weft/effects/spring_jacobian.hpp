@@ -20,7 +20,9 @@
 // symmetric positive definite: the usual definiteness fix, after Choi & Ko 2002). With
 // u = p_a - p_b, the spring adds g = alpha u + (beta + gamma) d (d . u) to (A p)_a and
 // -g to (A p)_b, where alpha = h^2 ks c, beta = h^2 ks (1 - c), gamma = h kd. linearize()
-// caches d, alpha, beta, gamma per spring once per step, and v = sqrt(beta + gamma) d: the
+// caches d, alpha, beta per spring once per step, the spring's block alpha I + (beta + gamma)
+// d d^T (for A's diagonal blocks and a multigrid's coarse operators: six contiguous numbers
+// a spring, read through the incidence lists), and v = sqrt(beta + gamma) d: the
 // system product takes g = alpha u + v (v . u), four numbers a spring to stream instead of
 // six (17 % less time per product on the 128^2 flag, one thread; the products are bound by
 // memory, not arithmetic). Each product is then one pass
@@ -70,14 +72,16 @@ class SpringJacobian {
   const Vec3Array<S>& offDiagonal() const { return offDiagonal_; }
   const Model<S>& model() const { return *model_; }
 
-  /// The linearisation per spring (indexed like Model::springs()): unit direction d,
-  /// alpha = h^2 ks c, beta = h^2 ks (1 - c), gamma = h kd (kg). Spring s couples its ends
-  /// through the symmetric positive semi-definite 3x3 block alpha I + (beta + gamma) d d^T
-  /// (a multigrid preconditioner sums these blocks into its coarse operators).
+  /// The linearisation per spring (indexed like Model::springs()): spring s couples its
+  /// ends through the symmetric positive semi-definite 3x3 block
+  /// B_s = alpha I + (beta + gamma) d d^T (kg; d its unit direction, alpha = h^2 ks c,
+  /// beta = h^2 ks (1 - c), gamma = h kd), stored as six numbers a spring, xx yy zz xy xz yz,
+  /// at blocks() + 6 s. A's diagonal block of a particle is its mass (plus the drag term)
+  /// times I plus the blocks of its springs; a multigrid preconditioner sums the blocks into
+  /// its coarse operators.
+  const S* blocks() const { return blocks_.data(); }
+  /// The springs' unit directions d, (m x 3) (0 for a spring of length 0).
   const Vec3Array<S>& directions() const { return direction_; }
-  const ScalarArray<S>& alpha() const { return alpha_; }
-  const ScalarArray<S>& beta() const { return beta_; }
-  const ScalarArray<S>& gamma() const { return gamma_; }
   /// h c, kg: the drag's share of each particle's diagonal.
   S dragTerm() const { return dragTerm_; }
 
@@ -94,8 +98,8 @@ class SpringJacobian {
   Vec3Array<S> scaled_;                   // (m x 3) sqrt(beta + gamma) d, for the system product
   ScalarArray<S> alpha_;                  // (m) h^2 ks c, kg
   ScalarArray<S> beta_;                   // (m) h^2 ks (1 - c), kg
-  ScalarArray<S> gamma_;                  // (m) h kd, kg
-  Vec3Array<S> g_;                        // (m x 3) per-spring product, on endpoint a
+  std::vector<S> blocks_;                 // (6 m) B_s per spring: xx yy zz xy xz yz, kg
+  Vec3Array<S> g_;                        // (m x 3) per-spring product, on endpoint a (0 rows on grid models)
   Vec3Array<S> diagonal_;                 // (n x 3) diag(A)
   Vec3Array<S> offDiagonal_;              // (n x 3) xy, xz, yz of A's diagonal blocks
   S dragTerm_ = 0;                        // h c, kg (the drag's share of A's diagonal)
