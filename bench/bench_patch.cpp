@@ -21,6 +21,7 @@
 
 #include <cmath>
 #include <map>
+#include <tuple>
 
 #include "bench_common.hpp"
 #include "patch_protocol.hpp"
@@ -36,12 +37,12 @@ using weftbench::kSpanFrames;
 /// or the iterations per step (projective dynamics); 0 = the default.
 weft::SimulationOptions patchOptions(weft::IntegratorKind kind, int substeps, int threads,
                                      weft::Preconditioner preconditioner = weft::Preconditioner::BlockJacobi,
-                                     int setting = 0) {
+                                     int setting = 0, double frame = kPatchFrame) {
   weft::SimulationOptions options;
   options.integrator = kind;
   options.integration.preconditioner = preconditioner;
   options.threads = threads;
-  options.dt = kPatchFrame / substeps;
+  options.dt = frame / substeps;
   options.integration.adaptive = false;
   if (setting > 0 && kind == weft::IntegratorKind::ImplicitEuler)
     options.integration.linearTolerance = std::pow(10.0, -setting);
@@ -52,18 +53,19 @@ weft::SimulationOptions patchOptions(weft::IntegratorKind kind, int substeps, in
 /// The settings of the converged reference: CG to 1e-10, 100 projective iterations.
 constexpr int kConvergedCg = 10, kConvergedProjective = 100;
 
-/// The patch after the span with the method's solve converged (computed once per method).
+/// The patch after the span (0.5 s in frames of 1 / fps s) with the method's solve
+/// converged (computed once per method and frame length).
 template <class S>
-const weft::Vec3Array<S>& convergedEnd(weft::IntegratorKind kind, weft::Preconditioner preconditioner) {
-  static std::map<std::pair<int, int>, weft::Vec3Array<S>> cache;
-  const std::pair<int, int> key{static_cast<int>(kind), static_cast<int>(preconditioner)};
+const weft::Vec3Array<S>& convergedEnd(weft::IntegratorKind kind, weft::Preconditioner preconditioner, int fps) {
+  static std::map<std::tuple<int, int, int>, weft::Vec3Array<S>> cache;
+  const std::tuple<int, int, int> key{static_cast<int>(kind), static_cast<int>(preconditioner), fps};
   if (auto it = cache.find(key); it != cache.end()) return it->second;
   const int setting = kind == weft::IntegratorKind::Projective ? kConvergedProjective : kConvergedCg;
-  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(kind, 1, 2, preconditioner, setting));
+  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(kind, 1, 2, preconditioner, setting, 1.0 / fps));
   const weft::State<S> rest = sim.state();  // the protocol of BM_Patch: one step, back to rest
   sim.step();
   sim.setState(rest);
-  sim.run(kSpanFrames);
+  sim.run(fps / 2);
   return cache[key] = sim.state().x;
 }
 
@@ -111,12 +113,21 @@ double largestDistance(const A& a, const B& b) {
   return worst;
 }
 
-template <class S, weft::IntegratorKind Kind, weft::Preconditioner Preconditioner = weft::Preconditioner::BlockJacobi>
+/// Fps: frames per second (600, the protocol's; 60 for the implicit methods' large step,
+/// BM_Patch60_*: the same 0.5 s in 30 frames of one step each).
+template <class S, weft::IntegratorKind Kind, weft::Preconditioner Preconditioner = weft::Preconditioner::BlockJacobi,
+          int Fps = 600>
 void BM_Patch(benchmark::State& st) {
+  if (Fps != 600 && weft::integratorIsExplicit(Kind)) {
+    st.SkipWithError("the explicit methods run the 1/600 s protocol");
+    return;
+  }
+  const double frame = 1.0 / Fps;
   const int threads = static_cast<int>(st.range(0));
   const int setting = weft::integratorIsExplicit(Kind) ? 0 : static_cast<int>(st.range(1));
   const int substeps = substepsPerFrame<S>(Kind);
-  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize), patchOptions(Kind, substeps, threads, Preconditioner, setting));
+  weft::Simulation<S> sim(weft::makeFlag<S>(kPatchSize),
+                          patchOptions(Kind, substeps, threads, Preconditioner, setting, frame));
   // Warm up (projective dynamics factorises its matrix in its first step), then back to rest.
   const weft::State<S> rest = sim.state();
   sim.step();
@@ -134,16 +145,16 @@ void BM_Patch(benchmark::State& st) {
     series.add(weft::stretch(sim.model(), sim.state()));
     st.ResumeTiming();
   }
-  series.report(st);
+  series.report(st, frame);
   st.counters["substeps"] = substeps;
-  st.counters["dt"] = kPatchFrame / substeps;
+  st.counters["dt"] = frame / substeps;
   const double steps = static_cast<double>(std::max<std::int64_t>(sim.stepCount() - stepsBefore, 1));
   // Implicit Euler: CG iterations; projective dynamics: solves (its iteration count).
   st.counters["cg_iterations_per_step"] =
       static_cast<double>(sim.totalWork().linearIterations - iterationsBefore) / steps;
   // After the timed loop: the references run once per process, untimed.
   if (!weft::integratorIsExplicit(Kind))
-    st.counters["error_vs_converged_m"] = largestDistance(sim.state().x, convergedEnd<S>(Kind, Preconditioner));
+    st.counters["error_vs_converged_m"] = largestDistance(sim.state().x, convergedEnd<S>(Kind, Preconditioner, Fps));
   st.counters["error_vs_rk4_m"] = largestDistance(sim.state().x, rk4End());
 }
 
@@ -162,6 +173,15 @@ void projectiveArgs(benchmark::internal::Benchmark* b) {
   b->ArgNames({"threads", "pd_iterations"})->Iterations(kSpanFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
   for (const int k : {10, 4, 1}) b->Args({2, k});
 }
+// The same settings in frames of 1/60 s (30 a span).
+void implicit60Args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"threads", "cg_tol_exp"})->Iterations(30)->UseRealTime()->Unit(benchmark::kMillisecond);
+  for (const int k : {6, 4, 3, 2}) b->Args({2, k});
+}
+void projective60Args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"threads", "pd_iterations"})->Iterations(30)->UseRealTime()->Unit(benchmark::kMillisecond);
+  for (const int k : {10, 4, 1}) b->Args({2, k});
+}
 
 using weft::IntegratorKind;
 #define WEFT_PATCH(NAME, ARGS, S, KIND) WEFT_BENCHMARK_AS(NAME, ARGS, BM_Patch<S, KIND>)
@@ -175,5 +195,11 @@ WEFT_PATCH(BM_Patch_Implicit_double, implicitArgs, double, IntegratorKind::Impli
 WEFT_BENCHMARK_AS(BM_Patch_ImplicitMultigrid_double, implicitArgs,
                   BM_Patch<double, IntegratorKind::ImplicitEuler, weft::Preconditioner::Multigrid>);
 WEFT_PATCH(BM_Patch_Projective_double, projectiveArgs, double, IntegratorKind::Projective);
+// The implicit methods at their large step: the same span in 30 steps of 1/60 s (no peer:
+// Bullet's soft body is not run at 1/60 s here).
+WEFT_BENCHMARK_AS(BM_Patch60_ImplicitMultigrid_double, implicit60Args,
+                  BM_Patch<double, IntegratorKind::ImplicitEuler, weft::Preconditioner::Multigrid, 60>);
+WEFT_BENCHMARK_AS(BM_Patch60_Projective_double, projective60Args,
+                  BM_Patch<double, IntegratorKind::Projective, weft::Preconditioner::BlockJacobi, 60>);
 
 }  // namespace

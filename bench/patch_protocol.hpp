@@ -35,15 +35,15 @@ class StretchSeries {
     last_ = s;
   }
   /// Counters max_stretch, mean_stretch, end_max_stretch, end_mean_stretch, wall_s_per_sim_s
-  /// and frames.
-  void report(benchmark::State& st) const {
+  /// (a benchmark iteration being one frame of `frame` s) and frames.
+  void report(benchmark::State& st, double frame = kPatchFrame) const {
     st.counters["max_stretch"] = peak_;
     st.counters["mean_stretch"] = frames_ ? meanSum_ / frames_ : 0.0;
     st.counters["end_max_stretch"] = last_.max;
     st.counters["end_mean_stretch"] = last_.mean;
     st.counters["frames"] = frames_;
     st.counters["wall_s_per_sim_s"] =
-        benchmark::Counter(kPatchFrame, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+        benchmark::Counter(frame, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
   }
 
  private:
