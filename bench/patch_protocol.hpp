@@ -10,7 +10,7 @@
 //   max_stretch   the largest stretch of any structural spring in any frame of the span
 //   mean_stretch  the mean over the span's frames of the mean structural stretch
 //   end_max_stretch, end_mean_stretch  the same at the span's last frame
-//   wall_s_per_sim_s  wall seconds per simulated second (time per frame x 600)
+//   wall_s_per_sim_s  wall seconds per simulated second (time per frame / the frame's length)
 #pragma once
 
 #include <benchmark/benchmark.h>

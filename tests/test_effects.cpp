@@ -656,7 +656,7 @@ TEST(SpringJacobian, ProductsMatchFiniteDifferencesOfTheForce) {
 
 TEST(SpringJacobian, BlocksAreEachSpringsCouplingAndSumToTheDiagonalBlocks) {
   // On a grid model (stencil products) and a mesh model (products through the incidence
-  // lists), stretched, with random velocities and a drag: column c of the product with
+  // lists), stretched, with a drag: column c of the product with
   // e_(i, c) is column c of A's blocks in row i, so (A e_(a, c))_b = -B_s e_c for a spring
   // s = (a, b) (the only one joining them), and A's diagonal block of i is what
   // diagonal() and offDiagonal() say, and (m_i + h drag) I plus the blocks of i's springs.

@@ -52,7 +52,8 @@
 // Every pass is a parallel pass over blocks of nodes that gathers in a fixed order (a
 // node's members, an edge's springs, a node's edges, the stencil's directions), and levels
 // below kParallelNodes run on the calling thread: the result is bitwise the same for any
-// thread count. Coarse levels are kept in double for both precisions.
+// thread count. Coarse levels are kept in double for both precisions (the first sums the
+// Jacobian's per-spring blocks, which are in the model's precision).
 #pragma once
 
 #include <vector>
