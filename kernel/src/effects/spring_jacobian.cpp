@@ -201,8 +201,8 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
   exec.parallelFor(sp.count(), ForceField<S>::kSpringGrain, [&](Index b, Index e) {
     linearizeSprings(b, e, sp.a.data(), sp.b.data(), col(x, 0), col(x, 1), col(x, 2), sp.restLength.data(),
                      sp.stiffness.data(), sp.damping.data(), h, col(direction_, 0), col(direction_, 1),
-                     col(direction_, 2), alpha_.data(), beta_.data(), col(scaled_, 0), col(scaled_, 1),
-                     col(scaled_, 2), blocks_.data());
+                     col(direction_, 2), alpha_.data(), beta_.data(), col(scaled_, 0), col(scaled_, 1), col(scaled_, 2),
+                     blocks_.data());
   });
   // A's diagonal block of particle i: (m_i + h c) I plus the blocks of i's springs, summed
   // in incidence order (one contiguous block of six a spring).
