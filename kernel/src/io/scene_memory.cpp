@@ -34,7 +34,9 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
       return isFloat ? Rates{258, 21} : Rates{511, 33};
     case IntegratorKind::ImplicitEuler:
       // With the block-Jacobi preconditioner (the default); the others add
-      // preconditionerBytesPerParticle. Each spring's 3x3 block is kept (six values).
+      // preconditionerBytesPerParticle. Each spring's 3x3 block is kept (six values); a
+      // model that is not a grid also keeps a per-spring product (three values more,
+      // not in this rate, which was measured on the flag).
       return isFloat ? Rates{158, 93} : Rates{302, 170};
     case IntegratorKind::Projective:
       // The global matrix's factor dominates: ~76 entries a particle at 128^2, growing
@@ -53,10 +55,12 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
 }
 // Implicit Euler's preconditioners beyond block-Jacobi, per particle. Peaks of `weft run flag
 // --integrator implicit --cg-preconditioner P --steps 1 --threads 1` against block-Jacobi's
-// (2026-11-27, AMD EPYC): the multigrid hierarchy (its levels in double in both precisions)
-// 6.7 / 24.8 MiB more at 128^2 / 256^2 (431 / 397 bytes a particle, ~the same in float);
-// the projective preconditioner's factor (projective dynamics' solver) 26.9 / 134 MiB more
-// (1722 / 2147 bytes a particle, its fill growing with the size; ~the same in float).
+// (2026-11-27, AMD EPYC; bench/results/2026-11-27-epyc-implicit-memory-estimate.txt): the
+// multigrid hierarchy (its levels in double in both precisions) 6.6 / 24.8 MiB more at
+// 128^2 / 256^2 in double (about 420 / 400 bytes a particle; the same in float); the
+// projective preconditioner's factor (projective dynamics' solver) 26.6 / 133.9 MiB more
+// (about 1700 / 2140 bytes a particle, its fill growing with the size; 25.3 / 138.8 in
+// float).
 double preconditionerBytesPerParticle(const SimulationOptions& options) {
   if (options.integrator != IntegratorKind::ImplicitEuler) return 0;
   switch (options.integration.preconditioner) {
