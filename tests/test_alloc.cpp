@@ -206,7 +206,7 @@ TYPED_TEST(StepAllocation, StepsDoNotAllocate) {
 }
 
 TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
-  // (StepAllocation covers the default, block-Jacobi, with a failing step too.)
+  // (StepAllocation covers the default, auto, with a failing step too.)
   const ModelAndState<double> flag = makeFlag<double>(kFlagSize);
   for (const Preconditioner p : kAllPreconditioners)
     for (const int threads : {1, 2}) {
@@ -220,6 +220,21 @@ TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
       if (p != Preconditioner::Projective) continue;
       expectTwoCachedStepSizesAllocateNothing(sim);
     }
+}
+
+TEST(ImplicitAllocation, AutoMovesToTheMultigridWithoutAllocating) {
+  // The 32^2 flag at 1/60 s: the first step (free fall from the flat cloth) takes one
+  // iteration; block-Jacobi's solves pass the threshold within the next few, inside the
+  // twenty counted steps, and the multigrid, built at construction, takes over.
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
+    SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads, 1.0 / 60);
+    Simulation<double> sim(makeFlag<double>(32), options);
+    ASSERT_TRUE(sim.run(1).ok());  // warm-up: TBB workers
+    ASSERT_EQ(sim.totalWork().multigridSolves, 0);
+    expectTwentyStepsDoNotAllocate(sim);
+    EXPECT_GT(sim.totalWork().multigridSolves, 10);
+  }
 }
 
 TEST(EffectAllocation, StepsWithEveryEffectDoNotAllocate) {

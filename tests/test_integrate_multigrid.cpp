@@ -4,7 +4,9 @@
 // pinned particles), it clusters A's spectrum far better than block-Jacobi, CG's
 // iterations with it barely grow with the grid, and results are bitwise the same on 1 and
 // 2 threads, and degenerate models (no springs, one particle, all pinned) step like
-// block-Jacobi.
+// block-Jacobi. Preconditioner::Auto (the default) is block-Jacobi bit for bit until a
+// solve passes its threshold and the multigrid from then on, on 1 and 2 threads and
+// across a checkpoint.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -19,6 +21,7 @@
 #include "weft/weft.hpp"
 
 using namespace weft;
+using weft::test::flagOptions;
 using weft::test::addNoise;
 
 namespace {
@@ -276,5 +279,100 @@ TEST(AggregationMultigrid, DegenerateModelsStepLikeBlockJacobi) {
       end[p == Preconditioner::Multigrid] = sim.state();
     }
     EXPECT_LT((end[0].x - end[1].x).cwiseAbs().maxCoeff(), 1e-8);
+  }
+}
+
+// Preconditioner::Auto (the default): block-Jacobi until a solve takes more than
+// kAutoMultigridIterations, the multigrid from the next step on, for good.
+
+namespace {
+
+SimulationOptions implicitFlagOptions(Preconditioner p, int threads, double dt) {
+  SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads, dt);
+  options.integration.preconditioner = p;
+  return options;
+}
+
+}  // namespace
+
+TEST(AutoPreconditioner, IsBlockJacobiUntilASolveTakesMoreThanTheThresholdThenTheMultigridForGood) {
+  // The 32^2 flag at 1/60 s: block-Jacobi's solves grow past the threshold within a few
+  // steps (about 120 iterations a step later on); the multigrid's stay near 20.
+  const ModelAndState<double> flag = makeFlag<double>(32);
+  Simulation<double> automatic(ModelAndState<double>{flag.model, flag.state},
+                               implicitFlagOptions(Preconditioner::Auto, 1, 1.0 / 60));
+  Simulation<double> blockJacobi(ModelAndState<double>{flag.model, flag.state},
+                                 implicitFlagOptions(Preconditioner::BlockJacobi, 1, 1.0 / 60));
+  int switched = -1;  // the step after which auto moved to the multigrid
+  for (int step = 0; step < 12; ++step) {
+    SCOPED_TRACE(::testing::Message() << "step " << step);
+    ASSERT_TRUE(automatic.step().ok()) << automatic.status().message();
+    const StepWork& work = automatic.lastWork();
+    EXPECT_LE(work.linearResidual, automatic.options().integration.linearTolerance);
+    if (switched < 0) {
+      // Until then, auto is block-Jacobi bit for bit.
+      ASSERT_TRUE(blockJacobi.step().ok());
+      EXPECT_EQ(work.multigridSolves, 0);
+      EXPECT_EQ(stateHash(automatic.state()), stateHash(blockJacobi.state()));
+      EXPECT_EQ(work.linearIterations, blockJacobi.lastWork().linearIterations);
+      if (work.linearIterations > kAutoMultigridIterations) switched = step;
+    } else {
+      EXPECT_EQ(work.multigridSolves, 1);
+      EXPECT_LT(work.linearIterations, kAutoMultigridIterations);
+    }
+  }
+  ASSERT_GE(switched, 0) << "block-Jacobi never took more than " << kAutoMultigridIterations << " iterations";
+  EXPECT_LT(switched, 6);
+  EXPECT_EQ(automatic.totalWork().multigridSolves, 11 - switched);
+  // A new state keeps the choice: it belongs to the model and the step, not the state.
+  automatic.setState(State<double>{flag.state});
+  ASSERT_TRUE(automatic.step().ok());
+  EXPECT_EQ(automatic.lastWork().multigridSolves, 1);
+}
+
+TEST(AutoPreconditioner, StaysBlockJacobiWhereItsSolvesAreShort) {
+  // The 16^2 flag at 1/600 s: about 11 block-Jacobi iterations a step, where the multigrid
+  // would cost 2.5x more time (docs/integrators.md). Bitwise block-Jacobi's run.
+  const ModelAndState<double> flag = makeFlag<double>(16);
+  std::uint64_t hash[2];
+  for (const Preconditioner p : {Preconditioner::Auto, Preconditioner::BlockJacobi}) {
+    Simulation<double> sim(ModelAndState<double>{flag.model, flag.state}, implicitFlagOptions(p, 2, 1.0 / 600));
+    Index most = 0;
+    for (int step = 0; step < 100; ++step) {
+      ASSERT_TRUE(sim.step().ok()) << sim.status().message();
+      most = std::max(most, sim.lastWork().linearIterations);
+    }
+    EXPECT_LE(most, kAutoMultigridIterations);
+    EXPECT_EQ(sim.totalWork().multigridSolves, 0);
+    hash[p == Preconditioner::Auto ? 0 : 1] = stateHash(sim.state());
+  }
+  EXPECT_EQ(hash[0], hash[1]);
+}
+
+TEST(AutoPreconditioner, TheSameOnOneAndTwoThreadsAndResumedFromACheckpointOnEitherSideOfTheSwitch) {
+  // (Double: its first step, free fall from the flat cloth, takes one iteration, so step 1
+  // is before the switch. In float rounding makes it 68, and auto switches after it.)
+  const ModelAndState<double> flag = makeFlag<double>(32);
+  const auto make = [&](int threads) {
+    return Simulation<double>(ModelAndState<double>{flag.model, flag.state},
+                             implicitFlagOptions(Preconditioner::Auto, threads, 1.0 / 60));
+  };
+  Simulation<double> two = make(2), one = make(1);
+  std::string before, after;  // checkpoints at step 1 (block-Jacobi) and 8 (the multigrid)
+  for (int step = 1; step <= 14; ++step) {
+    ASSERT_TRUE(two.step().ok()) << two.status().message();
+    ASSERT_TRUE(one.step().ok()) << one.status().message();
+    ASSERT_EQ(stateHash(two.state()), stateHash(one.state())) << "step " << step;
+    if (step == 1) before = two.checkpoint();
+    if (step == 8) after = two.checkpoint();
+  }
+  ASSERT_EQ(two.totalWork().multigridSolves, one.totalWork().multigridSolves);
+  ASSERT_GT(two.totalWork().multigridSolves, 0);
+  ASSERT_LT(two.totalWork().multigridSolves, 13) << "the switch comes after step 1";
+  for (const std::string* bytes : {&before, &after}) {
+    Simulation<double> resumed = make(1);
+    resumed.restore(*bytes, bytes == &before ? "at step 1" : "at step 8");
+    ASSERT_TRUE(resumed.run(static_cast<Index>(14 - resumed.stepCount())).ok());
+    EXPECT_EQ(stateHash(resumed.state()), stateHash(two.state())) << (bytes == &before ? "from step 1" : "from step 8");
   }
 }

@@ -255,8 +255,10 @@ int main(int argc, char** argv) {
   cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cg-preconditioner", run.preconditioner,
-                  "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid (default block-jacobi)")
-      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid"}));
+                  "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid | auto (default auto: "
+                  "block-jacobi, multigrid from the step after one that took more than " +
+                      std::to_string(weft::kAutoMultigridIterations) + " CG iterations)")
+      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
   cmd->add_option("--pd-iterations", run.projectiveIterations,
                   "projective: local/global iterations per step, one global solve each (1..10000; default 10)")
       ->check(CLI::Range(1, 10000));

@@ -66,6 +66,8 @@ nlohmann::ordered_json workJson(const weft::StepWork& w, std::int64_t steps) {
   j["linear_unconverged"] = static_cast<double>(w.linearUnconverged) / n;
   j["max_linear_residual"] = w.linearResidual;
   j["factorizations"] = w.factorizations;  // projective: in all (one per step size), not per step
+  // implicit Euler: the share of steps (work_total: the steps) whose CG the multigrid preconditioned
+  j["multigrid_solves"] = static_cast<double>(w.multigridSolves) / n;
   j["max_error_estimate"] = w.errorEstimate;
   return j;
 }
@@ -84,7 +86,9 @@ std::string workLine(const weft::StepWork& w, std::int64_t steps) {
         << "), " << w.factorizations << " factorisation" << (w.factorizations == 1 ? "" : "s");
   else if (w.linearIterations > 0 || w.linearResidual > 0)
     out << ", " << static_cast<double>(w.linearIterations) / n << " CG iterations (largest residual "
-        << w.linearResidual << ", " << w.linearUnconverged << " solves at the cap)";
+        << w.linearResidual << ", " << w.linearUnconverged << " solves at the cap"
+        << (w.multigridSolves > 0 ? ", " + std::to_string(w.multigridSolves) + " with the multigrid" : std::string())
+        << ")";
   return out.str();
 }
 

@@ -19,7 +19,7 @@ struct RunOptions {
   std::optional<std::string> integrator;
   std::optional<double> relativeTolerance, absoluteTolerance, linearTolerance;
   std::optional<std::int64_t> maxLinearIterations;
-  std::optional<std::string> preconditioner;  // implicit: jacobi | block-jacobi | projective | multigrid
+  std::optional<std::string> preconditioner;  // implicit: jacobi | block-jacobi | projective | multigrid | auto
   std::optional<int> projectiveIterations;
   bool fixedStep = false;  // rk45 without error control
   std::optional<double> drag;

@@ -14,7 +14,11 @@
 // projective dynamics' matrix per iteration, after that pass). Measured on the 128^2 flag
 // (docs/integrators.md): block-Jacobi takes 30 % fewer iterations than Jacobi at 1/60 s
 // for the same cost each; the projective one 53 % fewer, but its solve (two tasks over a
-// dissection) costs several iterations, so it is slower per step. The force f0 includes everything the ForceField
+// dissection) costs several iterations, so it is slower per step; multigrid (AggregationMultigrid:
+// one W-cycle per iteration) takes 20x fewer than block-Jacobi at 1/60 s, but costs about
+// 4.7 of its iterations each, so it pays only where block-Jacobi needs tens of iterations;
+// auto (the default) starts with block-Jacobi and moves to the multigrid for good after a
+// solve of more than kAutoMultigridIterations. The force f0 includes everything the ForceField
 // computes (springs, gravity); only the springs enter the Jacobian.
 //
 // Dot products are reduced deterministically: one partial per block of
@@ -57,25 +61,36 @@ class ImplicitEuler final : public Integrator<S> {
         q_(model.particleCount(), 3),
         z_(o.preconditioner == Preconditioner::Jacobi ? 0 : model.particleCount(), 3),
         inverseDiagonal_(model.particleCount(), 3),
-        inverseBlock_(o.preconditioner == Preconditioner::BlockJacobi ? model.particleCount() : 0, 6),
+        inverseBlock_(o.preconditioner == Preconditioner::BlockJacobi || o.preconditioner == Preconditioner::Auto
+                          ? model.particleCount()
+                          : 0,
+                      6),
         partialA_(static_cast<size_t>(Executor::blockCount(model.particleCount(), kBlock)), 0.0),
-        partialB_(partialA_.size(), 0.0) {
+        partialB_(partialA_.size(), 0.0),
+        active_(o.preconditioner == Preconditioner::Auto ? Preconditioner::BlockJacobi : o.preconditioner) {
     for (Index i = 0; i < model.particleCount(); ++i) free_[i] = model.isPinned(i) ? S(0) : S(1);
     dv_.setZero();
     if (o.preconditioner == Preconditioner::Projective)
       laplacian_ = std::make_unique<SpringLaplacianSolver<S>>(model, kProjectiveTheta,
                                                               "implicit Euler: the preconditioner's matrix");
-    if (o.preconditioner == Preconditioner::Multigrid) multigrid_ = std::make_unique<AggregationMultigrid<S>>(model);
+    if (o.preconditioner == Preconditioner::Multigrid || o.preconditioner == Preconditioner::Auto)
+      multigrid_ = std::make_unique<AggregationMultigrid<S>>(model);
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
+  // (Auto's choice is kept: it reflects the model and the step, not the state.)
   void reset() override { warm_ = false; }
   void saveCarry(ArchiveWriter& out) const override {
     out.value(warm_);
     out.array(dv_);
+    out.value(active_ == Preconditioner::Multigrid);
   }
   void loadCarry(ArchiveReader& in) override {
     in.flag(warm_, "implicit Euler's flag");
     in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
+    bool multigrid = false;
+    in.flag(multigrid, "implicit Euler's preconditioner");
+    if (options_.preconditioner == Preconditioner::Auto)  // (the others keep their own)
+      active_ = multigrid ? Preconditioner::Multigrid : Preconditioner::BlockJacobi;
   }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
@@ -105,13 +120,14 @@ class ImplicitEuler final : public Integrator<S> {
         bb += bc.template cast<double>().square().sum();
         rows(inverseDiagonal_, c, b, m) = f / rows(jacobian_.diagonal(), c, b, m);
       }
-      if (options_.preconditioner == Preconditioner::BlockJacobi) invertBlocks(b, m);
+      if (active_ == Preconditioner::BlockJacobi) invertBlocks(b, m);
       partialA_[static_cast<size_t>(b / kBlock)] = bb;
     };
     jacobian_.stiffnessProduct(v0, makeSink<S>(rhsStiffness), exec);
     if (laplacian_ && laplacian_->prepare(static_cast<double>(h), static_cast<double>(forces.effects().drag)))
       ++work.factorizations;
-    if (multigrid_) multigrid_->prepare(jacobian_, exec);
+    const bool multigrid = active_ == Preconditioner::Multigrid;
+    if (multigrid) multigrid_->prepare(jacobian_, exec);
     const double bNorm = std::sqrt(sumPartials(partialA_));
 
     // r = b - A dv (warm start) or r = b (cold); then rz = r . M^-1 r and |r|^2.
@@ -149,7 +165,7 @@ class ImplicitEuler final : public Integrator<S> {
       exec.parallelFor(n, kBlock, [&](Index b, Index e) {
         for (int c = 0; c < 3; ++c) {
           auto pc = rows(p_, c, b, e - b);
-          if (options_.preconditioner == Preconditioner::Jacobi) {
+          if (active_ == Preconditioner::Jacobi) {
             const auto z = rows(inverseDiagonal_, c, b, e - b) * rows(r_, c, b, e - b);
             if (first)
               pc = z;
@@ -196,6 +212,12 @@ class ImplicitEuler final : public Integrator<S> {
     }
     work.linearIterations += iterations;
     work.linearResidual = bNorm > 0 ? rNorm / bNorm : 0.0;
+    work.multigridSolves += multigrid ? 1 : 0;
+    // Auto: block-Jacobi until a solve takes more iterations than kAutoMultigridIterations,
+    // where a multigrid iteration's cost (about 4.7 block-Jacobi iterations, plus its levels
+    // each step) starts to pay.
+    if (options_.preconditioner == Preconditioner::Auto && iterations > kAutoMultigridIterations)
+      active_ = Preconditioner::Multigrid;
 
     // v1 = v0 + dv, x1 = x0 + h v1.
     exec.parallelFor(n, kBlock, [&](Index b, Index e) {
@@ -219,7 +241,7 @@ class ImplicitEuler final : public Integrator<S> {
   /// starting at b.
   void reduceResidual(Index b, Index m) {
     double rz = 0, rr = 0;
-    if (options_.preconditioner == Preconditioner::Jacobi) {
+    if (active_ == Preconditioner::Jacobi) {
       for (int c = 0; c < 3; ++c) {
         const auto r = rows(r_, c, b, m).template cast<double>();
         rz += (r * rows(inverseDiagonal_, c, b, m).template cast<double>() * r).sum();
@@ -227,7 +249,7 @@ class ImplicitEuler final : public Integrator<S> {
       }
     } else {
       for (int c = 0; c < 3; ++c) rr += rows(r_, c, b, m).template cast<double>().square().sum();
-      if (options_.preconditioner == Preconditioner::BlockJacobi) {
+      if (active_ == Preconditioner::BlockJacobi) {
         const S* __restrict inv = inverseBlock_.data();
         const Index stride = inverseBlock_.rows();
         for (Index i = b; i < b + m; ++i) {
@@ -268,7 +290,7 @@ class ImplicitEuler final : public Integrator<S> {
   /// pass that updates r (Jacobi and block-Jacobi work inside that pass).
   void precondition(const Executor& exec) {
     if (laplacian_) laplacian_->apply(r_, z_, partialA_, kBlock, exec);
-    if (multigrid_) multigrid_->apply(jacobian_, r_, z_, partialA_, kBlock, exec);
+    if (active_ == Preconditioner::Multigrid) multigrid_->apply(jacobian_, r_, z_, partialA_, kBlock, exec);
   }
   static double sumPartials(const std::vector<double>& partials) {
     double sum = 0;
@@ -290,6 +312,7 @@ class ImplicitEuler final : public Integrator<S> {
   std::vector<double> partialA_;                         // per block of kBlock particles
   std::vector<double> partialB_;
   bool warm_ = false;  // dv_ holds the previous step's solution
+  Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's current choice
 };
 
 }  // namespace

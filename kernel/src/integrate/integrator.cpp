@@ -69,6 +69,8 @@ const char* preconditionerName(Preconditioner p) {
       return "projective";
     case Preconditioner::Multigrid:
       return "multigrid";
+    case Preconditioner::Auto:
+      return "auto";
   }
   return "unknown";
 }
@@ -76,7 +78,7 @@ const char* preconditionerName(Preconditioner p) {
 Preconditioner parsePreconditioner(const std::string& name) {
   for (const Preconditioner p : kAllPreconditioners)
     if (name == preconditionerName(p)) return p;
-  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid; got '" +
+  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid, auto; got '" +
                               name + "'");
 }
 
@@ -106,9 +108,10 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
   if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
   if (o.preconditioner != Preconditioner::Jacobi && o.preconditioner != Preconditioner::BlockJacobi &&
-      o.preconditioner != Preconditioner::Projective && o.preconditioner != Preconditioner::Multigrid)
+      o.preconditioner != Preconditioner::Projective && o.preconditioner != Preconditioner::Multigrid &&
+      o.preconditioner != Preconditioner::Auto)
     bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)),
-        "must be Jacobi, BlockJacobi, Projective or Multigrid");
+        "must be Jacobi, BlockJacobi, Projective, Multigrid or Auto");
   if (o.projectiveIterations < 1 || o.projectiveIterations > 10000)
     bad("projectiveIterations", std::to_string(o.projectiveIterations), "must be in 1..10000");
 }

@@ -33,8 +33,8 @@ Rates memoryRates(IntegratorKind kind, bool isFloat) {
     case IntegratorKind::Rk45:
       return isFloat ? Rates{258, 21} : Rates{511, 33};
     case IntegratorKind::ImplicitEuler:
-      // With the block-Jacobi preconditioner (the default); the others add
-      // preconditionerBytesPerParticle. Each spring's 3x3 block is kept (six values); a
+      // With the block-Jacobi preconditioner; the others (and auto, which holds the
+      // multigrid beside it) add preconditionerBytesPerParticle. Each spring's 3x3 block is kept (six values); a
       // model that is not a grid also keeps a per-spring product (three values more,
       // not in this rate, which was measured on the flag).
       return isFloat ? Rates{158, 93} : Rates{302, 170};
@@ -65,6 +65,7 @@ double preconditionerBytesPerParticle(const SimulationOptions& options) {
   if (options.integrator != IntegratorKind::ImplicitEuler) return 0;
   switch (options.integration.preconditioner) {
     case Preconditioner::Multigrid:
+    case Preconditioner::Auto:  // (block-Jacobi's inverses and the multigrid, both built at construction)
       return 410;
     case Preconditioner::Projective:
       return 1950;

@@ -216,7 +216,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.maxLinearIterations =
         static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
     io.preconditioner = parsePreconditioner(r.choice(j, f, "cg_preconditioner", preconditionerName(io.preconditioner),
-                                                     {"jacobi", "block-jacobi", "projective", "multigrid"}));
+                                                     {"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
     io.projectiveIterations =
         static_cast<int>(r.integer(j, f, "projective_iterations", io.projectiveIterations, 1, 10000));
     // Ranges are the kernel's; the integer counts keep the file's cap of 2^30.

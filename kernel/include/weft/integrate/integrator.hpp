@@ -93,12 +93,21 @@ inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEul
 ///                to at most 32 nodes, solved there exactly; block-Jacobi smoothing. For
 ///                large steps on stiff or large cloth (20x fewer iterations on the 128^2
 ///                flag at 1/60 s); where block-Jacobi needs < 10 iterations it is slower
-/// BlockJacobi is the default: the fastest measured on the 128^2 flag (docs/integrators.md,
-/// implicit Euler, has the iterations and times of all four).
-enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid };
+///   Auto         (the default) block-Jacobi until one step's CG takes more than
+///                kAutoMultigridIterations iterations, multigrid from the next step on, for
+///                the rest of the Simulation's life (kept across setState, rejected steps
+///                and checkpoints). Both are built at construction, so the switch
+///                allocates nothing. The threshold is where the two cost the same on the
+///                flag from 16^2 to 96^2 at 1/60 and 1/600 s (docs/integrators.md)
+enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid, Auto };
 inline constexpr Preconditioner kAllPreconditioners[] = {Preconditioner::Jacobi, Preconditioner::BlockJacobi,
-                                                         Preconditioner::Projective, Preconditioner::Multigrid};
-/// Names on the command line and in scene files: jacobi, block-jacobi, projective, multigrid.
+                                                         Preconditioner::Projective, Preconditioner::Multigrid,
+                                                         Preconditioner::Auto};
+/// Preconditioner::Auto moves to the multigrid after a block-Jacobi solve of more
+/// iterations than this.
+inline constexpr Index kAutoMultigridIterations = 40;
+/// Names on the command line and in scene files: jacobi, block-jacobi, projective, multigrid,
+/// auto.
 const char* preconditionerName(Preconditioner p);
 /// Parses a name; throws std::invalid_argument naming the value otherwise.
 Preconditioner parsePreconditioner(const std::string& name);
@@ -116,7 +125,7 @@ struct IntegratorOptions {
   // ImplicitEuler
   double linearTolerance = 1e-6;  // CG stops when |r| <= linearTolerance |b| (filtered 2-norms)
   Index maxLinearIterations = 1000;
-  Preconditioner preconditioner = Preconditioner::BlockJacobi;  // implicit Euler's CG
+  Preconditioner preconditioner = Preconditioner::Auto;  // implicit Euler's CG
   // Projective: local/global iterations per step (one global solve each, >= 1)
   int projectiveIterations = 10;
 };
@@ -135,6 +144,7 @@ struct StepWork {
                                 // last iteration's largest coordinate change over the step's
                                 // largest displacement (largest if summed)
   Index factorizations = 0;     // Projective: global matrices factorised (a new time step h)
+  Index multigridSolves = 0;    // ImplicitEuler: solves preconditioned by the multigrid
   double errorEstimate = 0;     // Rk45: largest scaled error of an accepted substep (<= 1)
   bool failed = false;          // Rk45: error control gave up (minSubstep or maxSubsteps); the
                                 // result must not be used
@@ -146,6 +156,7 @@ struct StepWork {
     linearIterations += o.linearIterations;
     linearUnconverged += o.linearUnconverged;
     factorizations += o.factorizations;
+    multigridSolves += o.multigridSolves;
     linearResidual = linearResidual > o.linearResidual ? linearResidual : o.linearResidual;
     errorEstimate = errorEstimate > o.errorEstimate ? errorEstimate : o.errorEstimate;
     failed = failed || o.failed;
