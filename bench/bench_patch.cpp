@@ -202,7 +202,7 @@ WEFT_PATCH(BM_Patch_Symplectic_double, explicitArgs, double, IntegratorKind::Sym
 WEFT_PATCH(BM_Patch_Rk4_float, explicitArgs, float, IntegratorKind::Rk4);
 WEFT_PATCH(BM_Patch_Rk4_double, explicitArgs, double, IntegratorKind::Rk4);
 WEFT_PATCH(BM_Patch_Implicit_double, implicitArgs, double, IntegratorKind::ImplicitEuler);
-// Implicit Euler with the multigrid preconditioner (the one above uses the default, block-Jacobi).
+// Implicit Euler with the multigrid preconditioner (the one above uses block-Jacobi).
 WEFT_BENCHMARK_AS(BM_Patch_ImplicitMultigrid_double, implicitArgs,
                   BM_Patch<double, IntegratorKind::ImplicitEuler, weft::Preconditioner::Multigrid>);
 WEFT_PATCH(BM_Patch_Projective_double, projectiveArgs, double, IntegratorKind::Projective);

@@ -229,6 +229,7 @@ TEST(ImplicitAllocation, AutoMovesToTheMultigridWithoutAllocating) {
   for (const int threads : {1, 2}) {
     SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
     SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads, 1.0 / 60);
+    options.integration.preconditioner = Preconditioner::Auto;
     Simulation<double> sim(makeFlag<double>(32), options);
     ASSERT_TRUE(sim.run(1).ok());  // warm-up: TBB workers
     ASSERT_EQ(sim.totalWork().multigridSolves, 0);

@@ -9,16 +9,17 @@
 // deterministic; through the grid stencil on grid models).
 //
 // Preconditioners (IntegratorOptions::preconditioner): Jacobi (1 / diag(A)); block-Jacobi
-// (the default: each particle's 3x3 diagonal block of A inverted once per step, applied in
-// the pass that updates r); projective (SpringLaplacianSolver: one prefactored solve with
+// (each particle's 3x3 diagonal block of A inverted once per step, applied in the pass that
+// updates r); projective (SpringLaplacianSolver: one prefactored solve with
 // projective dynamics' matrix per iteration, after that pass). Measured on the 128^2 flag
 // (docs/integrators.md): block-Jacobi takes 30 % fewer iterations than Jacobi at 1/60 s
 // for the same cost each; the projective one 53 % fewer, but its solve (two tasks over a
 // dissection) costs several iterations, so it is slower per step; multigrid (AggregationMultigrid:
 // one W-cycle per iteration) takes 20x fewer than block-Jacobi at 1/60 s, but costs about
 // 4.7 of its iterations each, so it pays only where block-Jacobi needs tens of iterations;
-// auto (the default) starts with block-Jacobi and moves to the multigrid for good after a
-// solve of more than kAutoMultigridIterations. The force f0 includes everything the ForceField
+// auto (the default) takes block-Jacobi, and the multigrid for steps at least as long as the
+// shortest whose block-Jacobi solve took more than kAutoMultigridIterations (or stopped at
+// the cap). The force f0 includes everything the ForceField
 // computes (springs, gravity); only the springs enter the Jacobian.
 //
 // Dot products are reduced deterministically: one partial per block of
@@ -33,7 +34,9 @@
 // maxLinearIterations. A solve that stops at the cap is still used (the step is a
 // linearisation anyway; the stability check guards the result) and is reported in
 // StepWork.linearUnconverged with its residual.
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -77,20 +80,19 @@ class ImplicitEuler final : public Integrator<S> {
       multigrid_ = std::make_unique<AggregationMultigrid<S>>(model);
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
-  // (Auto's choice is kept: it reflects the model and the step, not the state.)
+  // (Auto's step is kept: it belongs to the model and the step size, not the state.)
   void reset() override { warm_ = false; }
   void saveCarry(ArchiveWriter& out) const override {
     out.value(warm_);
     out.array(dv_);
-    out.value(active_ == Preconditioner::Multigrid);
+    out.value(multigridStep_);
   }
   void loadCarry(ArchiveReader& in) override {
     in.flag(warm_, "implicit Euler's flag");
     in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
-    bool multigrid = false;
-    in.flag(multigrid, "implicit Euler's preconditioner");
-    if (options_.preconditioner == Preconditioner::Auto)  // (the others keep their own)
-      active_ = multigrid ? Preconditioner::Multigrid : Preconditioner::BlockJacobi;
+    in.value(multigridStep_);
+    if (!(multigridStep_ > 0))  // (+infinity: not yet)
+      in.fail("implicit Euler's multigrid step is not > 0");
   }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
@@ -98,6 +100,8 @@ class ImplicitEuler final : public Integrator<S> {
     StepWork work;
     work.substeps = 1;
     const Index n = static_cast<Index>(x0.rows());
+    if (options_.preconditioner == Preconditioner::Auto)
+      active_ = static_cast<double>(h) >= multigridStep_ ? Preconditioner::Multigrid : Preconditioner::BlockJacobi;
     const ScalarArray<S>& mass = jacobian_.model().mass();
 
     // b = h m a0 (filtered): a0 includes springs and gravity.
@@ -213,11 +217,13 @@ class ImplicitEuler final : public Integrator<S> {
     work.linearIterations += iterations;
     work.linearResidual = bNorm > 0 ? rNorm / bNorm : 0.0;
     work.multigridSolves += multigrid ? 1 : 0;
-    // Auto: block-Jacobi until a solve takes more iterations than kAutoMultigridIterations,
-    // where a multigrid iteration's cost (about 4.7 block-Jacobi iterations, plus its levels
-    // each step) starts to pay.
-    if (options_.preconditioner == Preconditioner::Auto && iterations > kAutoMultigridIterations)
-      active_ = Preconditioner::Multigrid;
+    // Auto: a block-Jacobi solve of more iterations than kAutoMultigridIterations (where a
+    // multigrid iteration's cost, about 4.7 block-Jacobi iterations plus its levels each
+    // step, starts to pay), or one stopped at the cap, hands steps of this length and longer
+    // to the multigrid.
+    if (options_.preconditioner == Preconditioner::Auto && active_ == Preconditioner::BlockJacobi &&
+        (iterations > kAutoMultigridIterations || work.linearUnconverged > 0))
+      multigridStep_ = std::min(multigridStep_, static_cast<double>(h));
 
     // v1 = v0 + dv, x1 = x0 + h v1.
     exec.parallelFor(n, kBlock, [&](Index b, Index e) {
@@ -312,7 +318,10 @@ class ImplicitEuler final : public Integrator<S> {
   std::vector<double> partialA_;                         // per block of kBlock particles
   std::vector<double> partialB_;
   bool warm_ = false;  // dv_ holds the previous step's solution
-  Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's current choice
+  Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's choice for this step
+  // Auto: steps at least this long (s) take the multigrid (+infinity until a block-Jacobi
+  // solve passes the threshold).
+  double multigridStep_ = std::numeric_limits<double>::infinity();
 };
 
 }  // namespace

@@ -65,8 +65,9 @@ double preconditionerBytesPerParticle(const SimulationOptions& options) {
   if (options.integrator != IntegratorKind::ImplicitEuler) return 0;
   switch (options.integration.preconditioner) {
     case Preconditioner::Multigrid:
-    case Preconditioner::Auto:  // (block-Jacobi's inverses and the multigrid, both built at construction)
       return 410;
+    case Preconditioner::Auto:  // the multigrid beside block-Jacobi's inverses (6 values a particle)
+      return 410 + 48;
     case Preconditioner::Projective:
       return 1950;
     case Preconditioner::Jacobi:

@@ -93,18 +93,21 @@ inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEul
 ///                to at most 32 nodes, solved there exactly; block-Jacobi smoothing. For
 ///                large steps on stiff or large cloth (20x fewer iterations on the 128^2
 ///                flag at 1/60 s); where block-Jacobi needs < 10 iterations it is slower
-///   Auto         (the default) block-Jacobi until one step's CG takes more than
-///                kAutoMultigridIterations iterations, multigrid from the next step on, for
-///                the rest of the Simulation's life (kept across setState, rejected steps
-///                and checkpoints). Both are built at construction, so the switch
-///                allocates nothing. The threshold is where the two cost the same on the
-///                flag from 16^2 to 96^2 at 1/60 and 1/600 s (docs/integrators.md)
+///   Auto         (the default) block-Jacobi, and the multigrid for every step at least as
+///                long as the shortest step whose block-Jacobi solve took more than
+///                kAutoMultigridIterations iterations or stopped at maxLinearIterations:
+///                so a stiff cloth moves to the multigrid from its second or third step
+///                on, a shorter step (setTimeStep, a collision chunk) goes back to
+///                block-Jacobi until it too needs that many. Kept across setState and in
+///                checkpoints. Both are built at construction, so switching allocates
+///                nothing. The threshold is where the two cost about the same on the
+///                flag from 16^2 to 128^2 at 1/60 and 1/600 s (docs/integrators.md)
 enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid, Auto };
 inline constexpr Preconditioner kAllPreconditioners[] = {Preconditioner::Jacobi, Preconditioner::BlockJacobi,
                                                          Preconditioner::Projective, Preconditioner::Multigrid,
                                                          Preconditioner::Auto};
-/// Preconditioner::Auto moves to the multigrid after a block-Jacobi solve of more
-/// iterations than this.
+/// Preconditioner::Auto takes the multigrid for steps as long as one whose block-Jacobi
+/// solve took more iterations than this.
 inline constexpr Index kAutoMultigridIterations = 40;
 /// Names on the command line and in scene files: jacobi, block-jacobi, projective, multigrid,
 /// auto.

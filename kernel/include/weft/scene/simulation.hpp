@@ -187,7 +187,9 @@ class Simulation {
   std::string checkpoint() const;
   void restore(std::string_view bytes, const std::string& source = "memory");
   /// The format version of checkpoint files this build writes and reads.
-  static constexpr std::uint32_t kCheckpointFormat = 3;  // 2: the self-collision section; 3: its pushes
+  // 2: the self-collision section; 3: its pushes; 4: implicit Euler's multigrid step (auto) and
+  // StepWork::multigridSolves
+  static constexpr std::uint32_t kCheckpointFormat = 4;
 
  private:
   std::shared_ptr<const Model<S>> model_;
