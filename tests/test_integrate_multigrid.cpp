@@ -342,6 +342,38 @@ TEST(AutoPreconditioner, IsBlockJacobiUntilASolveTakesMoreThanTheThresholdThenTh
   EXPECT_EQ(automatic.lastWork().multigridSolves, 1);
 }
 
+TEST(AutoPreconditioner, AMultigridSolveCostlierThanBlockJacobisHandsTheStepsBack) {
+  // The 16^2 flag at 0.01 s and CG 1e-8: block-Jacobi's second solve takes about 60
+  // iterations, sending the step to the multigrid, whose solve then costs more (4.7 block-
+  // Jacobi iterations each, 2 for its levels): the steps go back to block-Jacobi, and the
+  // threshold rises above that cost, so they stay there.
+  SimulationOptions options = implicitFlagOptions(Preconditioner::Auto, 1, 0.01);
+  options.integration.linearTolerance = 1e-8;
+  Simulation<double> sim(makeFlag<double>(16), options);
+  ASSERT_TRUE(sim.step().ok());
+  ASSERT_TRUE(sim.step().ok());
+  const Index trigger = sim.lastWork().linearIterations;
+  ASSERT_GT(trigger, kAutoMultigridIterations);
+  EXPECT_EQ(sim.lastWork().multigridSolves, 0);
+  ASSERT_TRUE(sim.step().ok());
+  EXPECT_EQ(sim.lastWork().multigridSolves, 1);
+  const double cost = 4.7 * static_cast<double>(sim.lastWork().linearIterations) + 2;
+  EXPECT_GE(cost, static_cast<double>(trigger));
+  for (int step = 0; step < 10; ++step) {
+    ASSERT_TRUE(sim.step().ok());
+    EXPECT_EQ(sim.lastWork().multigridSolves, 0) << "step " << step;
+    EXPECT_LT(static_cast<double>(sim.lastWork().linearIterations), 1.25 * cost);
+  }
+  // A checkpoint keeps the raised threshold: a resumed run stays with block-Jacobi too.
+  const std::string bytes = sim.checkpoint();
+  Simulation<double> resumed(makeFlag<double>(16), options);
+  resumed.restore(bytes, "after the hand-back");
+  ASSERT_TRUE(sim.run(5).ok());
+  ASSERT_TRUE(resumed.run(5).ok());
+  EXPECT_EQ(stateHash(resumed.state()), stateHash(sim.state()));
+  EXPECT_EQ(resumed.totalWork().multigridSolves, sim.totalWork().multigridSolves);
+}
+
 TEST(AutoPreconditioner, ASolveStoppedAtTheCapHandsItsStepToTheMultigrid) {
   // With a cap of 20 iterations, block-Jacobi's solves on the 32^2 flag at 1/60 s stop at
   // the cap (none takes more than 40); the multigrid converges within it.

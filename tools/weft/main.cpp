@@ -256,8 +256,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cg-preconditioner", run.preconditioner,
                   "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid | auto (default auto: "
-                  "block-jacobi, multigrid from the step after one that took more than " +
-                      std::to_string(weft::kAutoMultigridIterations) + " CG iterations)")
+                  "block-jacobi, and the multigrid where block-jacobi takes more than " +
+                      std::to_string(weft::kAutoMultigridIterations) + " CG iterations and the multigrid costs less)")
       ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
   cmd->add_option("--pd-iterations", run.projectiveIterations,
                   "projective: local/global iterations per step, one global solve each (1..10000; default 10)")

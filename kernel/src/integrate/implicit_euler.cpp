@@ -19,7 +19,8 @@
 // 4.7 of its iterations each, so it pays only where block-Jacobi needs tens of iterations;
 // auto (the default) takes block-Jacobi, and the multigrid for steps at least as long as the
 // shortest whose block-Jacobi solve took more than kAutoMultigridIterations (or stopped at
-// the cap). The force f0 includes everything the ForceField
+// the cap), back to block-Jacobi (with a higher threshold) if a multigrid solve then costs
+// more than that block-Jacobi solve did. The force f0 includes everything the ForceField
 // computes (springs, gravity); only the springs enter the Jacobian.
 //
 // Dot products are reduced deterministically: one partial per block of
@@ -38,6 +39,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "aggregation_multigrid.hpp"
@@ -86,13 +88,18 @@ class ImplicitEuler final : public Integrator<S> {
     out.value(warm_);
     out.array(dv_);
     out.value(multigridStep_);
+    out.value(threshold_);
+    out.value(trigger_);
   }
   void loadCarry(ArchiveReader& in) override {
     in.flag(warm_, "implicit Euler's flag");
     in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
     in.value(multigridStep_);
-    if (!(multigridStep_ > 0))  // (+infinity: not yet)
-      in.fail("implicit Euler's multigrid step is not > 0");
+    in.value(threshold_);
+    in.value(trigger_);
+    if (!(multigridStep_ > 0 && threshold_ >= kAutoMultigridIterations && trigger_ >= 0))  // (+infinity: not yet)
+      in.fail("implicit Euler's auto preconditioner: step " + std::to_string(multigridStep_) + " s, threshold " +
+              std::to_string(threshold_) + ", trigger " + std::to_string(trigger_) + " iterations are not valid");
   }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
@@ -217,13 +224,27 @@ class ImplicitEuler final : public Integrator<S> {
     work.linearIterations += iterations;
     work.linearResidual = bNorm > 0 ? rNorm / bNorm : 0.0;
     work.multigridSolves += multigrid ? 1 : 0;
-    // Auto: a block-Jacobi solve of more iterations than kAutoMultigridIterations (where a
-    // multigrid iteration's cost, about 4.7 block-Jacobi iterations plus its levels each
-    // step, starts to pay), or one stopped at the cap, hands steps of this length and longer
-    // to the multigrid.
-    if (options_.preconditioner == Preconditioner::Auto && active_ == Preconditioner::BlockJacobi &&
-        (iterations > kAutoMultigridIterations || work.linearUnconverged > 0))
-      multigridStep_ = std::min(multigridStep_, static_cast<double>(h));
+    // Auto: a block-Jacobi solve of more iterations than the threshold (at first
+    // kAutoMultigridIterations, where the multigrid starts to pay on the flag at CG 1e-6), or
+    // one stopped at the cap, hands steps of this length and longer to the multigrid. A
+    // multigrid solve that then costs more than that block-Jacobi solve did (an iteration
+    // costs about kMultigridIterationCost block-Jacobi iterations, its levels
+    // kMultigridStepCost a step) hands every step back, and raises the threshold above that
+    // cost: the measured iterations of both, not the constant, decide where they differ (a
+    // tighter tolerance favours block-Jacobi).
+    if (options_.preconditioner == Preconditioner::Auto) {
+      const bool unconverged = work.linearUnconverged > 0;
+      if (active_ == Preconditioner::BlockJacobi && (static_cast<double>(iterations) > threshold_ || unconverged)) {
+        multigridStep_ = std::min(multigridStep_, static_cast<double>(h));
+        trigger_ = unconverged ? std::numeric_limits<double>::infinity() : static_cast<double>(iterations);
+      } else if (active_ == Preconditioner::Multigrid && !unconverged) {
+        const double cost = kMultigridIterationCost * static_cast<double>(iterations) + kMultigridStepCost;
+        if (cost >= trigger_) {
+          multigridStep_ = std::numeric_limits<double>::infinity();
+          threshold_ = std::max(threshold_, kHysteresis * cost);
+        }
+      }
+    }
 
     // v1 = v0 + dv, x1 = x0 + h v1.
     exec.parallelFor(n, kBlock, [&](Index b, Index e) {
@@ -320,8 +341,17 @@ class ImplicitEuler final : public Integrator<S> {
   bool warm_ = false;  // dv_ holds the previous step's solution
   Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's choice for this step
   // Auto: steps at least this long (s) take the multigrid (+infinity until a block-Jacobi
-  // solve passes the threshold).
+  // solve passes the threshold); the threshold (block-Jacobi iterations); the iterations of
+  // the block-Jacobi solve that last sent a step to the multigrid (+infinity: it stopped at
+  // the cap, so no multigrid solve costs more).
   double multigridStep_ = std::numeric_limits<double>::infinity();
+  double threshold_ = static_cast<double>(kAutoMultigridIterations);
+  double trigger_ = std::numeric_limits<double>::infinity();
+  // A multigrid iteration and a multigrid step's levels, in block-Jacobi iterations (1.20
+  // against 0.254 ms an iteration and about 0.4 ms of levels a step, 128^2 flag, 1 thread;
+  // docs/integrators.md), and the margin by which the threshold then clears the multigrid's
+  // cost (so that the two do not alternate where they cost the same).
+  static constexpr double kMultigridIterationCost = 4.7, kMultigridStepCost = 2, kHysteresis = 1.25;
 };
 
 }  // namespace

@@ -94,20 +94,23 @@ inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEul
 ///                large steps on stiff or large cloth (20x fewer iterations on the 128^2
 ///                flag at 1/60 s); where block-Jacobi needs < 10 iterations it is slower
 ///   Auto         (the default) block-Jacobi, and the multigrid for every step at least as
-///                long as the shortest step whose block-Jacobi solve took more than
-///                kAutoMultigridIterations iterations or stopped at maxLinearIterations:
-///                so a stiff cloth moves to the multigrid from its second or third step
-///                on, a shorter step (setTimeStep, a collision chunk) goes back to
+///                long as the shortest step whose block-Jacobi solve took more than a
+///                threshold (at first kAutoMultigridIterations) or stopped at
+///                maxLinearIterations; back to block-Jacobi, with the threshold raised
+///                above the multigrid's cost, if a multigrid solve then costs more than
+///                that block-Jacobi solve (a multigrid iteration counted as 4.7). So a
+///                stiff cloth moves to the multigrid from its second or third step on,
+///                and a shorter step (setTimeStep, a collision chunk) goes back to
 ///                block-Jacobi until it too needs that many. Kept across setState and in
 ///                checkpoints. Both are built at construction, so switching allocates
-///                nothing. The threshold is where the two cost about the same on the
-///                flag from 16^2 to 128^2 at 1/60 and 1/600 s (docs/integrators.md)
+///                nothing (docs/integrators.md has the measurements)
 enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid, Auto };
 inline constexpr Preconditioner kAllPreconditioners[] = {Preconditioner::Jacobi, Preconditioner::BlockJacobi,
                                                          Preconditioner::Projective, Preconditioner::Multigrid,
                                                          Preconditioner::Auto};
-/// Preconditioner::Auto takes the multigrid for steps as long as one whose block-Jacobi
-/// solve took more iterations than this.
+/// Preconditioner::Auto's first threshold: the multigrid for steps as long as one whose
+/// block-Jacobi solve took more iterations than this (where the two cost about the same
+/// on the flag from 16^2 to 128^2 at 1/60 and 1/600 s and CG 1e-6).
 inline constexpr Index kAutoMultigridIterations = 40;
 /// Names on the command line and in scene files: jacobi, block-jacobi, projective, multigrid,
 /// auto.
