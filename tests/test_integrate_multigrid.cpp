@@ -5,8 +5,8 @@
 // iterations with it barely grow with the grid, and results are bitwise the same on 1 and
 // 2 threads, and degenerate models (no springs, one particle, all pinned) step like
 // block-Jacobi. Preconditioner::Auto (the default) is block-Jacobi bit for bit until a
-// solve passes its threshold and the multigrid from then on, on 1 and 2 threads and
-// across a checkpoint.
+// solve passes its threshold, then the multigrid at that step length unless the
+// multigrid's first solve there costs more, on 1 and 2 threads and across checkpoints.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -283,8 +283,11 @@ TEST(AggregationMultigrid, DegenerateModelsStepLikeBlockJacobi) {
 }
 
 // Preconditioner::Auto (the default): block-Jacobi, and the multigrid for steps at least as
-// long as the shortest whose block-Jacobi solve took more than kAutoMultigridIterations or
-// stopped at the cap.
+// long as the shortest whose block-Jacobi solve took more than the threshold (at first
+// kAutoMultigridIterations) or stopped at the cap, unless the multigrid's first solve at
+// that length costs more than that block-Jacobi solve (a multigrid iteration counted as
+// 4.7 block-Jacobi iterations, its levels as 2): then back, with the threshold at 1.25
+// times that cost.
 
 namespace {
 
@@ -355,6 +358,10 @@ TEST(AutoPreconditioner, AMultigridSolveCostlierThanBlockJacobisHandsTheStepsBac
   const Index trigger = sim.lastWork().linearIterations;
   ASSERT_GT(trigger, kAutoMultigridIterations);
   EXPECT_EQ(sim.lastWork().multigridSolves, 0);
+  // A checkpoint between the block-Jacobi solve and the multigrid's judged one: the resumed
+  // run judges it against the same count.
+  Simulation<double> fromTheTrigger(makeFlag<double>(16), options);
+  fromTheTrigger.restore(sim.checkpoint(), "after the trigger");
   ASSERT_TRUE(sim.step().ok());
   EXPECT_EQ(sim.lastWork().multigridSolves, 1);
   const double cost = 4.7 * static_cast<double>(sim.lastWork().linearIterations) + 2;
@@ -372,11 +379,15 @@ TEST(AutoPreconditioner, AMultigridSolveCostlierThanBlockJacobisHandsTheStepsBac
   ASSERT_TRUE(resumed.run(5).ok());
   EXPECT_EQ(stateHash(resumed.state()), stateHash(sim.state()));
   EXPECT_EQ(resumed.totalWork().multigridSolves, sim.totalWork().multigridSolves);
+  ASSERT_TRUE(fromTheTrigger.run(static_cast<Index>(sim.stepCount() - fromTheTrigger.stepCount())).ok());
+  EXPECT_EQ(stateHash(fromTheTrigger.state()), stateHash(sim.state()));
+  EXPECT_EQ(fromTheTrigger.totalWork().multigridSolves, sim.totalWork().multigridSolves);
 }
 
 TEST(AutoPreconditioner, ASolveStoppedAtTheCapHandsItsStepToTheMultigrid) {
   // With a cap of 20 iterations, block-Jacobi's solves on the 32^2 flag at 1/60 s stop at
-  // the cap (none takes more than 40); the multigrid converges within it.
+  // the cap (none takes more than 40): the step goes to the multigrid for good, whatever
+  // its solves cost (no multigrid solve costs more than an unfinished one).
   SimulationOptions options = implicitFlagOptions(Preconditioner::Auto, 1, 1.0 / 60);
   options.integration.maxLinearIterations = 20;
   Simulation<double> sim(makeFlag<double>(32), options);

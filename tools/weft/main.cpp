@@ -256,7 +256,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cg-preconditioner", run.preconditioner,
                   "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid | auto (default auto: "
-                  "block-jacobi, and the multigrid where block-jacobi takes more than " +
+                  "block-jacobi, and the multigrid where block-jacobi takes more than (at first) " +
                       std::to_string(weft::kAutoMultigridIterations) + " CG iterations and the multigrid costs less)")
       ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
   cmd->add_option("--pd-iterations", run.projectiveIterations,

@@ -43,6 +43,7 @@
 #include <vector>
 
 #include "aggregation_multigrid.hpp"
+#include "core/text.hpp"
 #include "row_blocks.hpp"
 #include "spring_laplacian_solver.hpp"
 #include "symmetric_block.hpp"
@@ -82,12 +83,14 @@ class ImplicitEuler final : public Integrator<S> {
       multigrid_ = std::make_unique<AggregationMultigrid<S>>(model);
   }
   IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
-  // (Auto's step is kept: it belongs to the model and the step size, not the state.)
+  // (Auto's lengths, threshold and trigger are kept: they belong to the model and the step
+  // size, not the state.)
   void reset() override { warm_ = false; }
   void saveCarry(ArchiveWriter& out) const override {
     out.value(warm_);
     out.array(dv_);
     out.value(multigridStep_);
+    out.value(acceptedStep_);
     out.value(threshold_);
     out.value(trigger_);
   }
@@ -95,11 +98,18 @@ class ImplicitEuler final : public Integrator<S> {
     in.flag(warm_, "implicit Euler's flag");
     in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
     in.value(multigridStep_);
+    in.value(acceptedStep_);
     in.value(threshold_);
     in.value(trigger_);
-    if (!(multigridStep_ > 0 && threshold_ >= kAutoMultigridIterations && trigger_ >= 0))  // (+infinity: not yet)
-      in.fail("implicit Euler's auto preconditioner: step " + std::to_string(multigridStep_) + " s, threshold " +
-              std::to_string(threshold_) + ", trigger " + std::to_string(trigger_) + " iterations are not valid");
+    // (What a run can reach: lengths > 0 or +infinity, the one in use no longer than the
+    // kept one; a finite threshold from 40 up; a trigger above 40 iterations, or +infinity.)
+    if (!(multigridStep_ > 0 && acceptedStep_ >= multigridStep_ && std::isfinite(threshold_) &&
+          threshold_ >= static_cast<double>(kAutoMultigridIterations) &&
+          (std::isinf(trigger_) ||
+           (trigger_ > static_cast<double>(kAutoMultigridIterations) && trigger_ == std::floor(trigger_)))))
+      in.fail("implicit Euler's auto preconditioner: step " + detail::number(multigridStep_) + " s (kept " +
+              detail::number(acceptedStep_) + " s), threshold " + detail::number(threshold_) + ", trigger " +
+              detail::number(trigger_) + " iterations: not a state a run reaches");
   }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,
@@ -226,23 +236,33 @@ class ImplicitEuler final : public Integrator<S> {
     work.multigridSolves += multigrid ? 1 : 0;
     // Auto: a block-Jacobi solve of more iterations than the threshold (at first
     // kAutoMultigridIterations, where the multigrid starts to pay on the flag at CG 1e-6), or
-    // one stopped at the cap, hands steps of this length and longer to the multigrid. A
-    // multigrid solve that then costs more than that block-Jacobi solve did (an iteration
-    // costs about kMultigridIterationCost block-Jacobi iterations, its levels
-    // kMultigridStepCost a step) hands every step back, and raises the threshold above that
-    // cost: the measured iterations of both, not the constant, decide where they differ (a
-    // tighter tolerance favours block-Jacobi).
+    // one stopped at the cap, hands steps of this length and longer to the multigrid. The
+    // next multigrid solve at that length is judged against it: if it costs more than that
+    // block-Jacobi solve did (an iteration counted as kMultigridIterationCost block-Jacobi
+    // iterations, its levels as kMultigridStepCost), the length goes back to block-Jacobi
+    // (the longer ones judged before stay with the multigrid) and the threshold rises above
+    // that cost; the measured iterations of both, not the constant, decide where they differ
+    // (a tighter tolerance favours block-Jacobi). A capped block-Jacobi solve is not judged
+    // against: no multigrid solve costs more than an unfinished one.
     if (options_.preconditioner == Preconditioner::Auto) {
-      const bool unconverged = work.linearUnconverged > 0;
-      if (active_ == Preconditioner::BlockJacobi && (static_cast<double>(iterations) > threshold_ || unconverged)) {
-        multigridStep_ = std::min(multigridStep_, static_cast<double>(h));
-        trigger_ = unconverged ? std::numeric_limits<double>::infinity() : static_cast<double>(iterations);
-      } else if (active_ == Preconditioner::Multigrid && !unconverged) {
+      const double length = static_cast<double>(h);
+      if (active_ == Preconditioner::BlockJacobi &&
+          (static_cast<double>(iterations) > threshold_ || work.linearUnconverged > 0)) {
+        multigridStep_ = length;  // (< multigridStep_: block-Jacobi ran)
+        trigger_ = static_cast<double>(iterations);
+        if (work.linearUnconverged > 0) {
+          acceptedStep_ = std::min(acceptedStep_, length);
+          trigger_ = std::numeric_limits<double>::infinity();
+        }
+      } else if (active_ == Preconditioner::Multigrid && length == multigridStep_ && std::isfinite(trigger_)) {
         const double cost = kMultigridIterationCost * static_cast<double>(iterations) + kMultigridStepCost;
         if (cost >= trigger_) {
-          multigridStep_ = std::numeric_limits<double>::infinity();
+          multigridStep_ = acceptedStep_;
           threshold_ = std::max(threshold_, kHysteresis * cost);
+        } else {
+          acceptedStep_ = length;
         }
+        trigger_ = std::numeric_limits<double>::infinity();  // judged
       }
     }
 
@@ -341,10 +361,13 @@ class ImplicitEuler final : public Integrator<S> {
   bool warm_ = false;  // dv_ holds the previous step's solution
   Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's choice for this step
   // Auto: steps at least this long (s) take the multigrid (+infinity until a block-Jacobi
-  // solve passes the threshold); the threshold (block-Jacobi iterations); the iterations of
-  // the block-Jacobi solve that last sent a step to the multigrid (+infinity: it stopped at
-  // the cap, so no multigrid solve costs more).
+  // solve passes the threshold); the shortest length the multigrid has kept (judged cheaper,
+  // or block-Jacobi stopped at the cap there; multigridStep_ returns to it on a hand-back);
+  // the threshold (block-Jacobi iterations); the iterations of the block-Jacobi solve that
+  // sent multigridStep_ to the multigrid, until the multigrid's first solve there is judged
+  // against it (+infinity: judged, or nothing to judge).
   double multigridStep_ = std::numeric_limits<double>::infinity();
+  double acceptedStep_ = std::numeric_limits<double>::infinity();
   double threshold_ = static_cast<double>(kAutoMultigridIterations);
   double trigger_ = std::numeric_limits<double>::infinity();
   // A multigrid iteration and a multigrid step's levels, in block-Jacobi iterations (1.20

@@ -66,8 +66,8 @@ double preconditionerBytesPerParticle(const SimulationOptions& options) {
   switch (options.integration.preconditioner) {
     case Preconditioner::Multigrid:
       return 410;
-    case Preconditioner::Auto:  // the multigrid beside block-Jacobi's inverses (6 values a particle)
-      return 410 + 48;
+    case Preconditioner::Auto:  // the multigrid beside block-Jacobi's inverses (6 values a particle:
+      return 410 + 48;          // 48 bytes in double, 24 in float, where this is 24 high)
     case Preconditioner::Projective:
       return 1950;
     case Preconditioner::Jacobi:

@@ -96,13 +96,14 @@ inline constexpr IntegratorKind kAllIntegrators[] = {IntegratorKind::ExplicitEul
 ///   Auto         (the default) block-Jacobi, and the multigrid for every step at least as
 ///                long as the shortest step whose block-Jacobi solve took more than a
 ///                threshold (at first kAutoMultigridIterations) or stopped at
-///                maxLinearIterations; back to block-Jacobi, with the threshold raised
-///                above the multigrid's cost, if a multigrid solve then costs more than
-///                that block-Jacobi solve (a multigrid iteration counted as 4.7). So a
-///                stiff cloth moves to the multigrid from its second or third step on,
-///                and a shorter step (setTimeStep, a collision chunk) goes back to
-///                block-Jacobi until it too needs that many. Kept across setState and in
-///                checkpoints. Both are built at construction, so switching allocates
+///                maxLinearIterations. The multigrid's first solve at that length is
+///                judged against that block-Jacobi solve (a multigrid iteration counted
+///                as 4.7 block-Jacobi iterations, its levels as 2): if it costs more, the
+///                length goes back to block-Jacobi and the threshold rises above that
+///                cost. So a stiff cloth moves to the multigrid from its second or third
+///                step on, and a shorter step (setTimeStep, a collision chunk) is
+///                block-Jacobi's until it too needs that many. Kept across setState and
+///                in checkpoints. Both are built at construction, so switching allocates
 ///                nothing (docs/integrators.md has the measurements)
 enum class Preconditioner { Jacobi, BlockJacobi, Projective, Multigrid, Auto };
 inline constexpr Preconditioner kAllPreconditioners[] = {Preconditioner::Jacobi, Preconditioner::BlockJacobi,
