@@ -21,8 +21,8 @@
 #include "weft/weft.hpp"
 
 using namespace weft;
-using weft::test::flagOptions;
 using weft::test::addNoise;
+using weft::test::flagOptions;
 
 namespace {
 
@@ -427,7 +427,7 @@ TEST(AutoPreconditioner, TheSameOnOneAndTwoThreadsAndResumedFromACheckpointOnEit
   const ModelAndState<double> flag = makeFlag<double>(32);
   const auto make = [&](int threads) {
     return Simulation<double>(ModelAndState<double>{flag.model, flag.state},
-                             implicitFlagOptions(Preconditioner::Auto, threads, 1.0 / 60));
+                              implicitFlagOptions(Preconditioner::Auto, threads, 1.0 / 60));
   };
   Simulation<double> two = make(2), one = make(1);
   std::string before, after;  // checkpoints at step 1 (block-Jacobi) and 8 (the multigrid)

@@ -358,7 +358,7 @@ class ImplicitEuler final : public Integrator<S> {
   std::unique_ptr<AggregationMultigrid<S>> multigrid_;   // the multigrid preconditioner
   std::vector<double> partialA_;                         // per block of kBlock particles
   std::vector<double> partialB_;
-  bool warm_ = false;  // dv_ holds the previous step's solution
+  bool warm_ = false;      // dv_ holds the previous step's solution
   Preconditioner active_;  // the one in use: options_.preconditioner, or Auto's choice for this step
   // Auto: steps at least this long (s) take the multigrid (+infinity until a block-Jacobi
   // solve passes the threshold); the shortest length the multigrid has kept (judged cheaper,
