@@ -254,11 +254,17 @@ int main(int argc, char** argv) {
       ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
   cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
       ->check(CLI::PositiveNumber);
+  std::vector<std::string> preconditioners;
+  std::string preconditionerList;
+  for (const weft::Preconditioner p : weft::kAllPreconditioners) {
+    preconditioners.emplace_back(weft::preconditionerName(p));
+    preconditionerList += (preconditionerList.empty() ? "" : " | ") + preconditioners.back();
+  }
   cmd->add_option("--cg-preconditioner", run.preconditioner,
-                  "implicit: CG preconditioner: jacobi | block-jacobi | projective | multigrid | auto (default auto: "
-                  "block-jacobi, and the multigrid where block-jacobi takes more than (at first) " +
+                  "implicit: CG preconditioner: " + preconditionerList +
+                      " (default auto: block-jacobi, and the multigrid where block-jacobi takes more than (at first) " +
                       std::to_string(weft::kAutoMultigridIterations) + " CG iterations and the multigrid costs less)")
-      ->check(CLI::IsMember({"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
+      ->check(CLI::IsMember(preconditioners));
   cmd->add_option("--pd-iterations", run.projectiveIterations,
                   "projective: local/global iterations per step, one global solve each (1..10000; default 10)")
       ->check(CLI::Range(1, 10000));

@@ -1,5 +1,6 @@
 #include "weft/integrate/integrator.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -76,10 +77,12 @@ const char* preconditionerName(Preconditioner p) {
 }
 
 Preconditioner parsePreconditioner(const std::string& name) {
-  for (const Preconditioner p : kAllPreconditioners)
+  std::string names;
+  for (const Preconditioner p : kAllPreconditioners) {
     if (name == preconditionerName(p)) return p;
-  throw std::invalid_argument("preconditioner must be one of jacobi, block-jacobi, projective, multigrid, auto; got '" +
-                              name + "'");
+    names += names.empty() ? preconditionerName(p) : std::string(", ") + preconditionerName(p);
+  }
+  throw std::invalid_argument("preconditioner must be one of " + names + "; got '" + name + "'");
 }
 
 int integratorOrder(IntegratorKind kind) { return traits(kind).order; }
@@ -107,11 +110,9 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
   if (!(std::isfinite(o.linearTolerance) && o.linearTolerance >= 0 && o.linearTolerance < 1))
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
   if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
-  if (o.preconditioner != Preconditioner::Jacobi && o.preconditioner != Preconditioner::BlockJacobi &&
-      o.preconditioner != Preconditioner::Projective && o.preconditioner != Preconditioner::Multigrid &&
-      o.preconditioner != Preconditioner::Auto)
-    bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)),
-        "must be Jacobi, BlockJacobi, Projective, Multigrid or Auto");
+  if (std::find(std::begin(kAllPreconditioners), std::end(kAllPreconditioners), o.preconditioner) ==
+      std::end(kAllPreconditioners))
+    bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)), "must be one of kAllPreconditioners");
   if (o.projectiveIterations < 1 || o.projectiveIterations > 10000)
     bad("projectiveIterations", std::to_string(o.projectiveIterations), "must be in 1..10000");
 }

@@ -215,8 +215,10 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.linearTolerance = r.anyNumber(j, f, "cg_tolerance", io.linearTolerance);
     io.maxLinearIterations =
         static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
-    io.preconditioner = parsePreconditioner(r.choice(j, f, "cg_preconditioner", preconditionerName(io.preconditioner),
-                                                     {"jacobi", "block-jacobi", "projective", "multigrid", "auto"}));
+    // (The names are the kernel's, as for the integrator.)
+    const std::string preconditioner = r.string(j, f, "cg_preconditioner", preconditionerName(io.preconditioner));
+    r.kernelRules(j, f, "", [&] { io.preconditioner = parsePreconditioner(preconditioner); },
+                  {{"preconditioner", "cg_preconditioner"}});
     io.projectiveIterations =
         static_cast<int>(r.integer(j, f, "projective_iterations", io.projectiveIterations, 1, 10000));
     // Ranges are the kernel's; the integer counts keep the file's cap of 2^30.
