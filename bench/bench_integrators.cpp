@@ -365,6 +365,7 @@ void BM_Jacobian_SystemProduct(benchmark::State& st) {
   const weft::ModelAndState<S> flag = weft::makeFlag<S>(size);
   const weft::Executor exec(static_cast<int>(st.range(1)));
   weft::SpringJacobian<S> jacobian(flag.model);
+  jacobian.reserve(exec);  // the stencil's windows, as a Simulation makes them when built
   const weft::Vec3Array<S> x = flag.state.x * S(1.02);
   jacobian.linearize(x, S(1.0 / 60), exec, S(0.01));
   weft::Vec3Array<S> p = flag.state.x;

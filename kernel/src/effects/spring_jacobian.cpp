@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "incidence.hpp"
 #include "stencil_gather.hpp"
@@ -162,6 +163,51 @@ template <class S>
   }
 }
 
+// y = sum_k (g_k[i] - g_k[i - offset_k]) over K families in order (+ (m_i + drag) p_i when
+// mass is given) over [0, count): the same additions, in the same order, as K calls of
+// addStencilFamily then addMassTerm, in one pass (g pointers at the block's first slot).
+template <class S, int K>
+[[gnu::noinline]] void gatherProducts(Index count, const S* const* g, const Index* offsets, const S* __restrict mass,
+                                      S drag, const S* __restrict px, const S* __restrict py, const S* __restrict pz,
+                                      S* __restrict yx, S* __restrict yy, S* __restrict yz) {
+  const S* __restrict gx[K];
+  const S* __restrict gy[K];
+  const S* __restrict gz[K];
+  Index o[K];
+  for (int k = 0; k < K; ++k) {
+    gx[k] = g[3 * k];
+    gy[k] = g[3 * k + 1];
+    gz[k] = g[3 * k + 2];
+    o[k] = offsets[k];
+  }
+  if (mass) {
+    for (Index i = 0; i < count; ++i) {
+      S sx = 0, sy = 0, sz = 0;
+      for (int k = 0; k < K; ++k) {
+        sx += gx[k][i] - gx[k][i - o[k]];
+        sy += gy[k][i] - gy[k][i - o[k]];
+        sz += gz[k][i] - gz[k][i - o[k]];
+      }
+      const S mi = mass[i] + drag;
+      yx[i] = sx + mi * px[i];
+      yy[i] = sy + mi * py[i];
+      yz[i] = sz + mi * pz[i];
+    }
+    return;
+  }
+  for (Index i = 0; i < count; ++i) {
+    S sx = 0, sy = 0, sz = 0;
+    for (int k = 0; k < K; ++k) {
+      sx += gx[k][i] - gx[k][i - o[k]];
+      sy += gy[k][i] - gy[k][i - o[k]];
+      sz += gz[k][i] - gz[k][i - o[k]];
+    }
+    yx[i] = sx;
+    yy[i] = sy;
+    yz[i] = sz;
+  }
+}
+
 }  // namespace
 
 template <class S>
@@ -189,8 +235,19 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       gridOffset_.push_back(static_cast<Index>(f.rowOffset) * grid->width + f.columnOffset);
       gridPad_ = std::max(gridPad_, gridOffset_.back());
     }
-    gridStride_ = gridPad_ + model.particleCount();
-    gridG_.assign(grid->families.size() * 3 * static_cast<size_t>(gridStride_), S(0));
+    // Chunks of whole sink blocks, at least 2048 particles in double, 4096 in float (the
+    // same bytes), and 16 rows (the rows above a chunk that its gather reaches are
+    // recomputed, gridPad_ / W of them: 2 of 16 at 128^2 in double).
+    const Index block = ForceField<S>::kSinkBlock, W = std::max<Index>(grid->width, 1);
+    gridChunk_ = std::max<Index>(ForceField<S>::kStencilChunkParticles * static_cast<Index>(8 / sizeof(S)), 16 * W);
+    gridChunk_ = (gridChunk_ + block - 1) / block * block;
+    // A chunk's rows: from that of b - gridPad_ to that of b + gridChunk_ - 1.
+    gridWindow_ = gridPad_ + ((gridChunk_ + gridPad_ - 1) / W + 2) * W;
+    // Padded so consecutive arrays start 5 cache lines apart modulo 4 KiB (the gather
+    // streams 36 of them at once; at power-of-two strides they share the L1 sets).
+    const Index perLine = static_cast<Index>(64 / sizeof(S)), perPage = static_cast<Index>(4096 / sizeof(S));
+    gridWindow_ = (gridWindow_ + perLine - 1) / perLine * perLine;
+    gridWindow_ += ((5 * perLine - gridWindow_ % perPage) % perPage + perPage) % perPage;
   }
 }
 
@@ -225,58 +282,105 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
 }
 
 template <class S>
+size_t SpringJacobian<S>::windowCount(const Executor& exec) const {
+  const bool serial = exec.threadCount() == 1 || Executor::blockCount(model_->particleCount(), gridChunk_) == 1;
+  return serial ? 1 : static_cast<size_t>(exec.threadCount());
+}
+
+template <class S>
+void SpringJacobian<S>::reserve(const Executor& exec) {
+  if (gridOffset_.empty()) return;
+  const size_t size = windowCount(exec) * gridOffset_.size() * 3 * static_cast<size_t>(gridWindow_);
+  if (gridWindows_.size() < size) gridWindows_.assign(size, S(0));
+}
+
+template <class S>
 template <bool kSystem>
 void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
   const GridLayout<S>& grid = *model_->grid();
   const Index W = grid.width, H = grid.height;
   const Index families = static_cast<Index>(grid.families.size());
-  const auto slot = [&](Index k, int c) {
-    return gridG_.data() + (static_cast<size_t>(3 * k + c)) * static_cast<size_t>(gridStride_) + gridPad_;
-  };
-  // Springs, family by family over chunks of rows (slots without a spring stay 0).
-  const Index rowGrain = std::max<Index>(1, ForceField<S>::kSpringGrain / std::max<Index>(W, 1));
-  exec.parallelFor(H, rowGrain, [&](Index r0, Index r1) {
+  constexpr Index kBlock = ForceField<S>::kSinkBlock;
+  const size_t perWindow = static_cast<size_t>(families) * 3 * static_cast<size_t>(gridWindow_);
+  const size_t slots = windowCount(exec);
+  const bool serial = slots == 1;
+  reserve(exec);
+  // One task per chunk of particles [b, e) (a whole number of sink blocks, so the sink sees
+  // the same blocks for any chunking). Its window holds, per family and axis, the product of
+  // the spring starting at each particle of the rows from that of b - gridPad_ to that of
+  // e - 1 (every slot the gather below reads), after gridPad_ zeros (never written: what
+  // i - offset_k reads before the grid's first particle). Springs starting in the rows above
+  // the chunk are recomputed here rather than shared with the chunk above: the values are
+  // bitwise the same either way, and the window stays in this core's cache (a buffer of the
+  // whole grid, 144 bytes a particle in double, streamed out and back through memory and
+  // took 1.4x the time on the 128^2 flag). A window per thread, as the force field's
+  // stencil has: each chunk writes every slot its gather reads.
+  exec.parallelFor(model_->particleCount(), gridChunk_, [&](Index b, Index e) {
+    const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
+    if (thread < 0 || static_cast<size_t>(thread) >= slots)
+      throw std::logic_error("SpringJacobian: a stencil chunk ran outside the executor's arena");
+    S* window = gridWindows_.data() + static_cast<size_t>(thread) * perWindow;
+    const Index rowFirst = b > gridPad_ ? (b - gridPad_) / W : 0, rowEnd = (e - 1) / W + 1;
+    // Window slot of particle i: gridPad_ + i - rowFirst W (>= 0 for every i the gather reads).
+    const Index shift = gridPad_ - rowFirst * W;
     for (Index k = 0; k < families; ++k) {
       const GridFamily<S>& f = grid.families[static_cast<size_t>(k)];
       const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
-      const Index count = c1 - c0, last = std::min<Index>(r1, H - f.rowOffset);
-      S* gx = slot(k, 0);
-      S* gy = slot(k, 1);
-      S* gz = slot(k, 2);
-      for (Index r = r0; r < last; ++r) {
+      const Index count = c1 - c0, last = H - f.rowOffset;  // rows [0, last) start a spring
+      S* g[3];
+      for (int c = 0; c < 3; ++c) g[c] = window + (3 * k + c) * gridWindow_ + gridPad_;
+      for (Index r = rowFirst; r < rowEnd; ++r) {
+        const Index at = (r - rowFirst) * W;  // the row's first slot after the padding
+        if (r >= last || count <= 0) {
+          for (int c = 0; c < 3; ++c) std::fill_n(g[c] + at, W, S(0));
+          continue;
+        }
+        for (int c = 0; c < 3; ++c) {
+          std::fill_n(g[c] + at, c0, S(0));
+          std::fill_n(g[c] + at + c1, W - c1, S(0));
+        }
         const Index i = r * W + c0, s = f.firstSpring + r * count;
         if constexpr (kSystem)
           scaledStridedProducts<S>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i,
                                    col(p, 2) + i, col(scaled_, 0) + s, col(scaled_, 1) + s, col(scaled_, 2) + s,
-                                   alpha_.data() + s, gx + i, gy + i, gz + i);
+                                   alpha_.data() + s, g[0] + at + c0, g[1] + at + c0, g[2] + at + c0);
         else
           stridedProducts<S>(count, gridOffset_[static_cast<size_t>(k)], col(p, 0) + i, col(p, 1) + i, col(p, 2) + i,
                              col(direction_, 0) + s, col(direction_, 1) + s, col(direction_, 2) + s, alpha_.data() + s,
-                             beta_.data() + s, gx + i, gy + i, gz + i);
+                             beta_.data() + s, g[0] + at + c0, g[1] + at + c0, g[2] + at + c0);
       }
     }
-  });
-  // Particles: +g_k[i] - g_k[i - offset_k], families in order, then the mass term.
-  constexpr Index kBlock = ForceField<S>::kSinkBlock;
-  exec.parallelFor(model_->particleCount(), kBlock, [&](Index b, Index e) {
+    // Particles: +g_k[i] - g_k[i - offset_k], families in order, then the mass term.
     alignas(64) S yx[kBlock], yy[kBlock], yz[kBlock];
-    const Index m = e - b;
-    std::fill_n(yx, m, S(0));
-    std::fill_n(yy, m, S(0));
-    std::fill_n(yz, m, S(0));
-    for (Index k = 0; k < families; ++k)
-      detail::addStencilFamily(m, gridOffset_[static_cast<size_t>(k)], slot(k, 0) + b, slot(k, 1) + b, slot(k, 2) + b,
-                               yx, yy, yz);
-    if constexpr (kSystem)
-      addMassTerm(m, model_->mass().data() + b, dragTerm_, col(p, 0) + b, col(p, 1) + b, col(p, 2) + b, yx, yy, yz);
-    sink(b, m, yx, yy, yz);
+    for (Index j0 = b; j0 < e; j0 += kBlock) {
+      const Index m = std::min<Index>(kBlock, e - j0);
+      const Index slot = j0 + shift;
+      const S* mass = kSystem ? model_->mass().data() + j0 : nullptr;
+      if (families == 6) {
+        const S* g[18];
+        for (Index c = 0; c < 18; ++c) g[c] = window + c * gridWindow_ + slot;
+        gatherProducts<S, 6>(m, g, gridOffset_.data(), mass, dragTerm_, col(p, 0) + j0, col(p, 1) + j0, col(p, 2) + j0,
+                             yx, yy, yz);
+      } else {  // grids without shear or bend springs
+        std::fill_n(yx, m, S(0));
+        std::fill_n(yy, m, S(0));
+        std::fill_n(yz, m, S(0));
+        for (Index k = 0; k < families; ++k)
+          detail::addStencilFamily(m, gridOffset_[static_cast<size_t>(k)], window + (3 * k) * gridWindow_ + slot,
+                                   window + (3 * k + 1) * gridWindow_ + slot, window + (3 * k + 2) * gridWindow_ + slot,
+                                   yx, yy, yz);
+        if constexpr (kSystem)
+          addMassTerm(m, mass, dragTerm_, col(p, 0) + j0, col(p, 1) + j0, col(p, 2) + j0, yx, yy, yz);
+      }
+      sink(j0, m, yx, yy, yz);
+    }
   });
 }
 
 template <class S>
 template <bool kSystem>
 void SpringJacobian<S>::product(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec) {
-  if (!gridG_.empty()) {
+  if (!gridOffset_.empty()) {
     gridProduct<kSystem>(p, sink, exec);
     return;
   }

@@ -29,7 +29,8 @@
 // thread count. Products fuse the per-particle work that follows them: q = A p is
 // filtered and dotted with p in the pass that forms it; dv, r and the new (r, z) dot
 // product share one pass (block-Jacobi forms z there too). Per iteration: one Jacobian
-// product (two passes) and two more passes (plus the projective solve).
+// product (one pass on a grid model, two on others) and two more passes (plus the
+// projective or multigrid preconditioner's).
 //
 // Stopping: |r| <= linearTolerance |b| (2-norms of the filtered vectors), or
 // maxLinearIterations. A solve that stops at the cap is still used (the step is a
@@ -86,6 +87,7 @@ class ImplicitEuler final : public Integrator<S> {
   // (Auto's lengths, threshold and trigger are kept: they belong to the model and the step
   // size, not the state.)
   void reset() override { warm_ = false; }
+  void reserve(const Executor& exec) override { jacobian_.reserve(exec); }
   void saveCarry(ArchiveWriter& out) const override {
     out.value(warm_);
     out.array(dv_);

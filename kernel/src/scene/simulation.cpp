@@ -90,6 +90,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
   trackVelocity_.setZero(static_cast<Index>(tracks_.size()), 3);
   forces_.setProfiling(options_.profileEffects);
   forces_.reserve(*executor_);  // the grid stencil's windows, one per thread: none made by a step
+  integrator_->reserve(*executor_);
   if (options_.collision.any()) {
     // The edges the contact pass tests against mesh edges: the cloth's surface edges and a
     // rope's links (structural and shear springs), when there is a mesh to test them on.

@@ -33,13 +33,15 @@
 // fuse its own per-particle work (and per-block reductions) into the same pass.
 //
 // On a model built as a regular grid (Model::grid()) the products run through the grid
-// stencil instead, like the GridStencil force strategy: per family and row, the springs'
-// products are computed from contiguous loads into a per-family buffer indexed by the
-// spring's first particle (zero where no spring starts), and particle i then sums
-// +g_k[i] - g_k[i - offset_k] over the families in their fixed order: no index lists, and
-// the same order for any thread count.
+// stencil instead, like the GridStencil force strategy: per chunk of particles, per family
+// and row, the springs' products are computed from contiguous loads into the thread's
+// window, indexed by the spring's first particle (zero where no spring starts), and
+// particle i then sums +g_k[i] - g_k[i - offset_k] over the families in their fixed order:
+// no index lists, the same order for any thread count, and a window that stays in the
+// core's cache (the springs of the two rows above a chunk are computed by both chunks).
 //
-// Everything is sized at construction; linearize() and the products never allocate.
+// Everything else is sized at construction; the windows, one per thread, by reserve() (or
+// by the first product). linearize() and the products then never allocate.
 #pragma once
 
 #include <vector>
@@ -72,6 +74,10 @@ class SpringJacobian {
   const Vec3Array<S>& offDiagonal() const { return offDiagonal_; }
   const Model<S>& model() const { return *model_; }
 
+  /// Makes the grid stencil's windows, one per thread of `exec` (a product makes them
+  /// itself if this was not called, or for more threads); nothing on other models.
+  void reserve(const Executor& exec);
+
   /// The linearisation per spring (indexed like Model::springs()): spring s couples its
   /// ends through the symmetric positive semi-definite 3x3 block
   /// B_s = alpha I + (beta + gamma) d d^T (kg; d its unit direction, alpha = h^2 ks c,
@@ -103,12 +109,15 @@ class SpringJacobian {
   Vec3Array<S> diagonal_;                 // (n x 3) diag(A)
   Vec3Array<S> offDiagonal_;              // (n x 3) xy, xz, yz of A's diagonal blocks
   S dragTerm_ = 0;                        // h c, kg (the drag's share of A's diagonal)
-  // Grid models: per family and axis, the product of the spring starting at each particle,
-  // after gridPad_ leading zeros (so i - offset_k is never negative).
-  std::vector<S> gridG_;
+  size_t windowCount(const Executor& exec) const;
+  // Grid models: per thread, a window per family and axis of gridWindow_ slots: the
+  // product of the spring starting at each particle of a chunk's rows (and the rows above
+  // it that its gather reaches), after gridPad_ leading zeros (gridProduct).
+  std::vector<S> gridWindows_;
   std::vector<Index> gridOffset_;  // per family: rowOffset W + columnOffset
-  Index gridPad_ = 0;
-  Index gridStride_ = 0;  // gridPad_ + n
+  Index gridPad_ = 0;              // the largest offset
+  Index gridChunk_ = 0;            // particles per task, whole sink blocks
+  Index gridWindow_ = 0;           // slots per family and axis
 };
 
 extern template class SpringJacobian<float>;

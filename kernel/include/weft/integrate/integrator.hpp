@@ -182,6 +182,11 @@ class Integrator {
   /// integrator: a new state, or a rejected step.
   virtual void reset() {}
 
+  /// Makes what a step on `exec` needs per thread (implicit Euler's stencil windows), so
+  /// that no step allocates; the Simulation calls it when built. An integrator stepped
+  /// without it makes them in its first step.
+  virtual void reserve(const Executor&) {}
+
   /// Checkpoints (Simulation::save / load): writes, and reads back in the same order, what
   /// the integrator carries from step to step (Verlet's acceleration, rk45's slope and
   /// proposed substep, implicit Euler's warm start); nothing for the others.
