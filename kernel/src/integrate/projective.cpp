@@ -54,9 +54,11 @@
 //
 // Grids. On a model with a grid layout the local step runs over each spring family's rows
 // (a spring's endpoints i and i + offset for consecutive i: contiguous loads, where the
-// general per-spring endpoints need gathers) and the right-hand side is gathered by the
-// same stencil (per particle: each family's spring from it, minus the one to it) instead of
-// the incidence lists; tests/test_integrate.cpp checks both paths agree.
+// general per-spring endpoints need gathers, which on the AMD EPYC took about as long as a
+// triangular solve) and the right-hand side is gathered by the same stencil (per particle:
+// each family's spring from it, minus the one to it) instead of the incidence lists, both
+// in one pass per chunk of particles through a window per thread (gridResidual);
+// tests/test_integrate.cpp checks both paths agree.
 //
 // Convergence. Each iteration (a local step, a gather, a solve) is a fixed-point step
 // towards backward Euler (without damping it lowers the backward-Euler energy: Liu et
@@ -92,7 +94,7 @@ class Projective final : public Integrator<S> {
         free_(model.particleCount()),
         externalAccel_(model.particleCount(), 3),
         springForce_(model.springCount(), 3),
-        springTerm_(model.springCount(), 3),
+        springTerm_(model.grid() ? 0 : model.springCount(), 3),
         constant_(model.particleCount(), 3),
         displacement_(model.particleCount(), 3),
         blockMax_(static_cast<size_t>(Executor::blockCount(model.particleCount(), kGrain)), 0.0),
@@ -100,6 +102,27 @@ class Projective final : public Integrator<S> {
         global_(model, 1.0, "projective dynamics: the global matrix") {
     for (Index i = 0; i < n_; ++i) free_[i] = model.isPinned(i) ? S(0) : S(1);
     incidence_ = model.springCount() > 0 ? &model.springIncidence() : nullptr;
+    if (model.grid()) {
+      const GridLayout<S>& grid = *model.grid();
+      const Index W = std::max<Index>(grid.width, 1);
+      for (const GridFamily<S>& f : grid.families) {
+        familyOffset_.push_back(f.rowOffset * grid.width + f.columnOffset);
+        pad_ = std::max(pad_, familyOffset_.back());
+      }
+      // Chunks of at least 2048 particles in double (4096 in float: the same bytes) and 16
+      // rows; a chunk's window spans its rows and the pad_ / W rows above that its gather
+      // reaches, after pad_ slots that stay zero (what i - offset reads before particle 0).
+      chunk_ = std::max<Index>(ForceField<S>::kStencilChunkParticles * static_cast<Index>(8 / sizeof(S)), 16 * W);
+      window_ = pad_ + ((chunk_ + pad_ - 1) / W + 2) * W;
+      const Index perLine = static_cast<Index>(64 / sizeof(S)), perPage = static_cast<Index>(4096 / sizeof(S));
+      window_ = (window_ + perLine - 1) / perLine * perLine;
+      window_ += ((5 * perLine - window_ % perPage) % perPage + perPage) % perPage;  // 4 KiB aliasing
+    }
+  }
+  void reserve(const Executor& exec) override {
+    if (familyOffset_.empty()) return;
+    const size_t size = windowCount(exec) * familyOffset_.size() * 3 * static_cast<size_t>(window_);
+    if (windows_.size() < size) windows_.assign(size, S(0));
   }
   IntegratorKind kind() const override { return IntegratorKind::Projective; }
 
@@ -161,29 +184,33 @@ class Projective final : public Integrator<S> {
     });
 
     for (int k = 0; k < iterations_; ++k) {
-      localStep(x0, h, exec);
-      // The residual r = b(dx) - P dx, gathered per particle (grid: by stencil; else in its
-      // incidence order), into the factor's ordering with the coordinates interleaved.
-      exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
-        alignas(64) S sum[3][kGrain];
-        const bool grid = gatherBlock(springTerm_, b, e, sum);
-        for (Index i = b; i < e; ++i) {
-          double* out = permuted + global_.offset(i);
-          if (free_[i] == S(0)) {  // dx = h v0 already: no correction
-            for (int c = 0; c < 3; ++c) out[c] = 0.0;
-            continue;
+      if (!familyOffset_.empty()) {
+        gridResidual(x0, h, drag, permuted, exec);
+      } else {
+        localStep(x0, h, exec);
+        // The residual r = b(dx) - P dx, gathered per particle (grid: by stencil; else in its
+        // incidence order), into the factor's ordering with the coordinates interleaved.
+        exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
+          alignas(64) S sum[3][kGrain];
+          const bool grid = gatherBlock(springTerm_, b, e, sum);
+          for (Index i = b; i < e; ++i) {
+            double* out = permuted + global_.offset(i);
+            if (free_[i] == S(0)) {  // dx = h v0 already: no correction
+              for (int c = 0; c < 3; ++c) out[c] = 0.0;
+              continue;
+            }
+            S f[3] = {0, 0, 0};
+            if (grid)
+              for (int c = 0; c < 3; ++c) f[c] = sum[c][i - b];
+            else if (incidence_ != nullptr)
+              gatherSprings(springTerm_, i, f);
+            const double diagonal = static_cast<double>(mass[i]) + static_cast<double>(h) * static_cast<double>(drag);
+            for (int c = 0; c < 3; ++c)
+              out[c] = (static_cast<double>(constant_(i, c)) + static_cast<double>(f[c])) -
+                       diagonal * static_cast<double>(displacement_(i, c));
           }
-          S f[3] = {0, 0, 0};
-          if (grid)
-            for (int c = 0; c < 3; ++c) f[c] = sum[c][i - b];
-          else if (incidence_ != nullptr)
-            gatherSprings(springTerm_, i, f);
-          const double diagonal = static_cast<double>(mass[i]) + static_cast<double>(h) * static_cast<double>(drag);
-          for (int c = 0; c < 3; ++c)
-            out[c] = (static_cast<double>(constant_(i, c)) + static_cast<double>(f[c])) -
-                     diagonal * static_cast<double>(displacement_(i, c));
-        }
-      });
+        });
+      }
       global_.solveBuffer(exec);
       const bool last = k + 1 == iterations_;
       exec.parallelForBlocks(n_, kGrain, [&](Index block, Index b, Index e) {
@@ -281,6 +308,124 @@ class Projective final : public Integrator<S> {
     blockMax_[static_cast<size_t>(block)] = moved;
   }
 
+  static constexpr Index kBlock = ForceField<S>::kSinkBlock;
+
+  /// t[i] = sum over K families in order of (+g_k[i], then -g_k[i - offset_k]) over
+  /// [0, count): gatherBlock's additions in its order (g pointers at the first slot).
+  template <int K>
+  [[gnu::noinline]] static void gatherTerms(Index count, const S* const* g, const Index* offsets, S* __restrict tx,
+                                            S* __restrict ty, S* __restrict tz) {
+    const S* __restrict gx[K];
+    const S* __restrict gy[K];
+    const S* __restrict gz[K];
+    Index o[K];
+    for (int k = 0; k < K; ++k) {
+      gx[k] = g[3 * k];
+      gy[k] = g[3 * k + 1];
+      gz[k] = g[3 * k + 2];
+      o[k] = offsets[k];
+    }
+    for (Index i = 0; i < count; ++i) {
+      S sx = 0, sy = 0, sz = 0;
+      for (int k = 0; k < K; ++k) {
+        sx += gx[k][i];
+        sx -= gx[k][i - o[k]];
+        sy += gy[k][i];
+        sy -= gy[k][i - o[k]];
+        sz += gz[k][i];
+        sz -= gz[k][i - o[k]];
+      }
+      tx[i] = sx;
+      ty[i] = sy;
+      tz[i] = sz;
+    }
+  }
+  /// t[i] += g[i], then -= g[i - offset], over [0, count).
+  [[gnu::noinline]] static void addTerms(Index count, const S* __restrict g, Index offset, S* __restrict t) {
+    for (Index i = 0; i < count; ++i) {
+      t[i] += g[i];
+      t[i] -= g[i - offset];
+    }
+  }
+
+  size_t windowCount(const Executor& exec) const {
+    const bool serial = exec.threadCount() == 1 || Executor::blockCount(n_, chunk_) == 1;
+    return serial ? 1 : static_cast<size_t>(exec.threadCount());
+  }
+
+  /// On a grid, the local step and the gather of the residual in one pass: per chunk of
+  /// particles, the springs of its rows and of the rows above that its gather reaches
+  /// (computed by both chunks: the same bits either way) into the thread's window, indexed
+  /// by the spring's first particle (zero where none starts), then per particle, family by
+  /// family, + the spring from it and - the spring to it: the additions of gatherBlock, in
+  /// its order, without a buffer of every spring's term streamed out and back.
+  void gridResidual(const Vec3Array<S>& x0, S h, S drag, double* permuted, const Executor& exec) {
+    const GridLayout<S>& grid = *model_->grid();
+    const Index W = grid.width, H = grid.height;
+    const Index families = static_cast<Index>(grid.families.size());
+    const Springs<S>& sp = model_->springs();
+    const ScalarArray<S>& mass = model_->mass();
+    const S h2 = h * h;
+    const size_t perWindow = static_cast<size_t>(families) * 3 * static_cast<size_t>(window_);
+    const size_t slots = windowCount(exec);
+    const bool serial = slots == 1;
+    reserve(exec);
+    exec.parallelFor(n_, chunk_, [&](Index b, Index e) {
+      const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
+      if (thread < 0 || static_cast<size_t>(thread) >= slots)
+        throw std::logic_error("projective dynamics: a stencil chunk ran outside the executor's arena");
+      S* window = windows_.data() + static_cast<size_t>(thread) * perWindow;
+      const Index rowFirst = b > pad_ ? (b - pad_) / W : 0, rowEnd = (e - 1) / W + 1;
+      const Index shift = pad_ - rowFirst * W;  // window slot of particle i: i + shift
+      for (Index k = 0; k < families; ++k) {
+        const GridFamily<S>& f = grid.families[static_cast<size_t>(k)];
+        const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
+        const Index count = c1 - c0, last = H - f.rowOffset;
+        S* family = window + 3 * k * window_;  // coordinate c at family + c window_
+        for (Index r = rowFirst; r < rowEnd; ++r) {
+          const Index at = pad_ + (r - rowFirst) * W;
+          if (r >= last || count <= 0) {
+            for (int c = 0; c < 3; ++c) std::fill_n(family + c * window_ + at, W, S(0));
+            continue;
+          }
+          for (int c = 0; c < 3; ++c) {
+            std::fill_n(family + c * window_ + at, c0, S(0));
+            std::fill_n(family + c * window_ + at + c1, W - c1, S(0));
+          }
+          localSprings<true>(f.firstSpring + r * count, count, r * W + c0, familyOffset_[static_cast<size_t>(k)], h2, h,
+                             nullptr, nullptr, sp.stiffness.data(), sp.restLength.data(), sp.damping.data(), x0.data(),
+                             displacement_.data(), n_, family, window_, at + c0);
+        }
+      }
+      const double diagonalDrag = static_cast<double>(h) * static_cast<double>(drag);
+      alignas(64) S sum[3][kBlock];
+      for (Index j0 = b; j0 < e; j0 += kBlock) {
+        const Index len = std::min<Index>(kBlock, e - j0);
+        if (families == 6) {
+          const S* g[18];
+          for (Index c = 0; c < 18; ++c) g[c] = window + c * window_ + j0 + shift;
+          gatherTerms<6>(len, g, familyOffset_.data(), sum[0], sum[1], sum[2]);
+        } else {
+          for (int c = 0; c < 3; ++c) std::fill_n(sum[c], len, S(0));
+          for (Index k = 0; k < families; ++k)
+            for (int c = 0; c < 3; ++c)
+              addTerms(len, window + (3 * k + c) * window_ + j0 + shift, familyOffset_[static_cast<size_t>(k)], sum[c]);
+        }
+        for (Index i = j0; i < j0 + len; ++i) {
+          double* out = permuted + global_.offset(i);
+          if (free_[i] == S(0)) {  // dx = h v0 already: no correction
+            for (int c = 0; c < 3; ++c) out[c] = 0.0;
+            continue;
+          }
+          const double diagonal = static_cast<double>(mass[i]) + diagonalDrag;
+          for (int c = 0; c < 3; ++c)
+            out[c] = (static_cast<double>(constant_(i, c)) + static_cast<double>(sum[c][i - j0])) -
+                     diagonal * static_cast<double>(displacement_(i, c));
+        }
+      }
+    });
+  }
+
   /// The local step, per spring, with u = dx_a - dx_b the change of the spring vector over
   /// the step, e = x0_a - x0_b + u the vector at the iterate and e^ its direction: the
   /// spring's share of the residual b(dx) - P dx,
@@ -291,39 +436,21 @@ class Projective final : public Integrator<S> {
     const Springs<S>& sp = model_->springs();
     const S h2 = h * h;
     const Index m = sp.count();
-    if (model_->grid()) {
-      // A grid: family by family and row by row, a spring's endpoints are i and i + offset
-      // for consecutive i, so the loads are contiguous (no gathers; on the AMD EPYC the
-      // gathered version took about as long as a triangular solve).
-      const GridLayout<S>& grid = *model_->grid();
-      const Index W = grid.width, H = grid.height;
-      exec.parallelFor(H, std::max<Index>(1, kSpringGrain / std::max<Index>(W, 1)), [&](Index r0, Index r1) {
-        for (const GridFamily<S>& f : grid.families) {
-          const Index c0 = std::max<Index>(0, -f.columnOffset), c1 = std::min<Index>(W, W - f.columnOffset);
-          const Index count = c1 - c0, last = std::min<Index>(r1, H - f.rowOffset);
-          const Index offset = f.rowOffset * W + f.columnOffset;
-          for (Index r = r0; r < last; ++r)
-            localSprings<true>(f.firstSpring + r * count, count, r * W + c0, offset, h2, h, nullptr, nullptr,
-                               sp.stiffness.data(), sp.restLength.data(), sp.damping.data(), x0.data(),
-                               displacement_.data(), n_, springTerm_.data(), m);
-        }
-      });
-      return;
-    }
     exec.parallelFor(m, kSpringGrain, [&](Index b, Index e) {
       localSprings<false>(b, e - b, 0, 0, h2, h, sp.a.data(), sp.b.data(), sp.stiffness.data(), sp.restLength.data(),
-                          sp.damping.data(), x0.data(), displacement_.data(), n_, springTerm_.data(), m);
+                          sp.damping.data(), x0.data(), displacement_.data(), n_, springTerm_.data(), m, b);
     });
   }
 
   /// The local step over springs [first, first + count) on raw arrays (coordinate-major:
-  /// x(i, c) at x[c n + i]), branch-free so that it vectorises. kStrided: spring first + j joins particles
+  /// x(i, c) at x[c n + i]; spring first + j's term to term[c m + out + j]), branch-free so
+  /// that it vectorises. kStrided: spring first + j joins particles
   /// i0 + j and i0 + j + offset (a grid family's row); else the endpoints are pa[s], pb[s].
   template <bool kStrided>
   static void localSprings(Index first, Index count, Index i0, Index offset, S h2, S h, const Index* __restrict pa,
                            const Index* __restrict pb, const S* __restrict stiffness, const S* __restrict restLength,
                            const S* __restrict damping, const S* __restrict x0, const S* __restrict dx, Index n,
-                           S* __restrict term, Index m) {
+                           S* __restrict term, Index m, Index out) {
     for (Index j = 0; j < count; ++j) {
       const Index s = first + j;
       Index ia, ib;
@@ -352,7 +479,7 @@ class Projective final : public Integrator<S> {
       const S viscous = h * damping[s];
       for (int c = 0; c < 3; ++c) {
         const S t = ks * (rest * d[c] - e[c]) - viscous * along * d[c];
-        term[c * m + s] = t;
+        term[c * m + out + j] = t;
       }
     }
   }
@@ -364,10 +491,15 @@ class Projective final : public Integrator<S> {
   ScalarArray<S> free_;         // (n) 1 for free particles, 0 for pinned
   Vec3Array<S> externalAccel_;  // (n x 3) every acceleration at the start of the step, m/s^2
   Vec3Array<S> springForce_;    // (m x 3) spring forces at the start of the step, N
-  Vec3Array<S> springTerm_;     // (m x 3) the local step's per-spring right-hand side, kg m
+  Vec3Array<S> springTerm_;     // (m x 3) the local step's per-spring right-hand side, kg m (not on grids)
   Vec3Array<S> constant_;       // (n x 3) the right-hand side's constant part, kg m
   Vec3Array<S> displacement_;   // (n x 3) the iterate: x1 - x0, m
   std::vector<double> blockMax_, blockMove_;
+  // Grids: per family rowOffset W + columnOffset, the largest of them, particles per chunk,
+  // slots per family and coordinate, and the windows, one per thread (gridResidual).
+  std::vector<Index> familyOffset_;
+  Index pad_ = 0, chunk_ = 0, window_ = 0;
+  std::vector<S> windows_;
   SpringLaplacianSolver<S> global_;  // the global matrix, factorised per (h, drag), and its solves
 };
 
