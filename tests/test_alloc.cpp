@@ -222,6 +222,52 @@ TEST(ImplicitAllocation, EveryPreconditionerStepsWithoutAllocating) {
     }
 }
 
+TEST(ImplicitAllocation, ReserveMakesTheJacobiansStencilWindowsForEveryThread) {
+  // The 64^2 flag's products run in two chunks, one window per thread: reserve() makes
+  // them, and a first product then allocates nothing; without it, the first product makes
+  // them (the counter sees it, so the zero above is not vacuous).
+  const ModelAndState<double> flag = makeFlag<double>(64);
+  const Executor exec(2);
+  for (int k = 0; k < 4; ++k) exec.parallelFor(1 << 16, 1, [](Index, Index) {});  // TBB workers join
+  Vec3Array<double> y(flag.model.particleCount(), 3);
+  auto store = [&](Index b, Index m, const double* yx, const double* yy, const double* yz) {
+    for (Index t = 0; t < m; ++t) y.row(b + t) << yx[t], yy[t], yz[t];
+  };
+  for (const bool reserve : {true, false}) {
+    SCOPED_TRACE(reserve ? "reserved" : "not reserved");
+    SpringJacobian<double> jacobian(flag.model);
+    if (reserve) jacobian.reserve(exec);
+    jacobian.linearize(flag.state.x * 1.01, 1.0 / 60, exec);
+    const Counts first = countDuring([&] {
+      jacobian.systemProduct(flag.state.v, makeSink<double>(store), exec);
+      jacobian.stiffnessProduct(flag.state.x, makeSink<double>(store), exec);
+    });
+    if (reserve) {
+      EXPECT_EQ(first.news, 0);
+      EXPECT_EQ(first.mallocs, 0);
+    } else {
+      EXPECT_GT(first.news + first.mallocs, 0);
+    }
+  }
+}
+
+TEST(ImplicitAllocation, TheFirstStepOnOneThreadAllocatesNothing) {
+  // The Simulation reserves what its integrator needs per thread when it is built (the 64^2
+  // flag's products and projective dynamics' passes run in two chunks): on one thread (no
+  // TBB workers to join) even the first implicit Euler step allocates nothing.
+  for (const Preconditioner p : {Preconditioner::BlockJacobi, Preconditioner::Multigrid}) {
+    SCOPED_TRACE(preconditionerName(p));
+    SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, 1, 1.0 / 60);
+    options.integration.preconditioner = p;
+    Simulation<double> sim(makeFlag<double>(64), options);
+    StepStatus status;
+    const Counts first = countDuring([&] { status = sim.step(); });
+    ASSERT_TRUE(status.ok()) << status.message();
+    EXPECT_EQ(first.news, 0);
+    EXPECT_EQ(first.mallocs, 0);
+  }
+}
+
 TEST(ImplicitAllocation, AutoMovesToTheMultigridWithoutAllocating) {
   // The 32^2 flag at 1/60 s: the first step (free fall from the flat cloth) takes one
   // iteration; block-Jacobi's solves pass the threshold within the next few, inside the

@@ -715,12 +715,68 @@ TEST(SpringJacobian, BlocksAreEachSpringsCouplingAndSumToTheDiagonalBlocks) {
   }
 }
 
+// One grid's system and stiffness products (SpringJacobian::systemProduct and
+// stiffnessProduct) on `threads` threads, with or without reserve(), checked against the
+// sums over the springs of +-B_s (p_a - p_b) from blocks() (B_s less h kd d d^T for the
+// stiffness), to `tolerance` of the largest entry; returns both, side by side (n x 6).
+template <class S>
+Eigen::Array<S, Eigen::Dynamic, 6> gridProducts(const ModelAndState<S>& cloth, const Vec3Array<S>& x,
+                                                const Vec3Array<S>& p, int threads, bool reserve, double tolerance) {
+  const Model<S>& model = cloth.model;
+  const Index n = model.particleCount();
+  const double h = 0.01, drag = 0.2;
+  const Executor exec(threads);
+  SpringJacobian<S> jacobian(model);
+  if (reserve) jacobian.reserve(exec);
+  jacobian.linearize(x, static_cast<S>(h), exec, static_cast<S>(drag));
+  Eigen::Array<S, Eigen::Dynamic, 6> y = Eigen::Array<S, Eigen::Dynamic, 6>::Constant(n, 6, std::nan(""));
+  for (int product = 0; product < 2; ++product) {
+    auto store = [&](Index b, Index m, const S* yx, const S* yy, const S* yz) {
+      EXPECT_EQ(b % ForceField<S>::kSinkBlock, 0) << b;  // the CG's per-block sums rely on it
+      for (Index t = 0; t < m; ++t) {
+        y(b + t, 3 * product) = yx[t];
+        y(b + t, 3 * product + 1) = yy[t];
+        y(b + t, 3 * product + 2) = yz[t];
+      }
+    };
+    if (product == 0)
+      jacobian.systemProduct(p, makeSink<S>(store), exec);
+    else
+      jacobian.stiffnessProduct(p, makeSink<S>(store), exec);
+    const Springs<S>& sp = model.springs();
+    Eigen::MatrixXd reference(n, 3);
+    for (Index i = 0; i < n; ++i)
+      reference.row(i) =
+          product == 0
+              ? ((static_cast<double>(model.mass()[i]) + h * drag) * p.row(i).matrix().template cast<double>()).eval()
+              : Eigen::RowVector3d::Zero();
+    for (Index s = 0; s < sp.count(); ++s) {
+      const S* k = jacobian.blocks() + 6 * s;
+      Eigen::Matrix3d block;
+      block << k[0], k[3], k[4], k[3], k[1], k[5], k[4], k[5], k[2];
+      if (product == 1) {
+        const Eigen::Vector3d d = jacobian.directions().row(s).matrix().template cast<double>().transpose();
+        block -= h * static_cast<double>(sp.damping[s]) * d * d.transpose();
+      }
+      const Eigen::Vector3d u = (p.row(sp.a[s]) - p.row(sp.b[s])).matrix().template cast<double>().transpose();
+      const Eigen::Vector3d gs = block * u;
+      reference.row(sp.a[s]) += gs.transpose();
+      reference.row(sp.b[s]) -= gs.transpose();
+    }
+    const Eigen::MatrixXd got = y.middleCols(3 * product, 3).matrix().template cast<double>();
+    const double scale = reference.cwiseAbs().maxCoeff();
+    EXPECT_LT((got - reference).cwiseAbs().maxCoeff(), tolerance * scale)
+        << (product == 0 ? "system" : "stiffness") << " product, " << threads << " threads";
+  }
+  return y;
+}
+
 TEST(SpringJacobian, GridProductsAreTheSpringSumsForAnyWidthChunkingAndThreadCount) {
   // The stencil products run per chunk of particles, recomputing the rows above a chunk
   // that its gather reaches: grids of a few columns and many chunks, of rows wider than a
-  // chunk's default, with and without shear and bend springs (families of other offsets).
-  // Each is checked against the sum over the springs of +-B_s (p_a - p_b) from blocks(),
-  // and 1, 2 and 3 threads give the same bits, with and without reserve().
+  // chunk's default, with and without shear and bend springs (families of other offsets),
+  // in double and float. Each is checked against the sum over the springs, and 1, 2 and 3
+  // threads give the same bits, with and without reserve().
   struct Case {
     Index width, height;
     bool shear, bend;
@@ -735,52 +791,27 @@ TEST(SpringJacobian, GridProductsAreTheSpringSumsForAnyWidthChunkingAndThreadCou
     spec.spacing = 0.01;
     spec.shearSprings = g.shear;
     spec.bendSprings = g.bend;
-    ModelBuilder<double> builder;
-    addClothGrid(builder, spec);
-    ModelAndState<double> cloth = builder.build();
-    ASSERT_TRUE(cloth.model.grid().has_value());
-    const Model<double>& model = cloth.model;
-    const Index n = model.particleCount();
-    cloth.state.x *= 1.1;
-    addNoise<double>(cloth.state.x, 0.001, 21);
-    Vec3Array<double> p = Vec3Array<double>::Zero(n, 3);
-    addNoise<double>(p, 1.0, 22);
-    const double h = 0.01, drag = 0.2;
-    const auto product = [&](int threads, bool reserve) {
-      const Executor exec(threads);
-      SpringJacobian<double> jacobian(model);
-      if (reserve) jacobian.reserve(exec);
-      jacobian.linearize(cloth.state.x, h, exec, drag);
-      Vec3Array<double> y = Vec3Array<double>::Constant(n, 3, std::nan(""));
-      auto store = [&](Index b, Index m, const double* yx, const double* yy, const double* yz) {
-        EXPECT_EQ(b % ForceField<double>::kSinkBlock, 0) << b;  // the CG's per-block sums rely on it
-        for (Index t = 0; t < m; ++t) y.row(b + t) << yx[t], yy[t], yz[t];
-      };
-      jacobian.systemProduct(p, makeSink<double>(store), exec);
-      // The reference: (m_i + h drag) p_i + sum over i's springs of +-B_s (p_a - p_b).
-      const Springs<double>& sp = model.springs();
-      Eigen::MatrixXd reference(n, 3);
-      for (Index i = 0; i < n; ++i) reference.row(i) = (model.mass()[i] + h * drag) * p.row(i).matrix();
-      for (Index s = 0; s < sp.count(); ++s) {
-        const double* k = jacobian.blocks() + 6 * s;
-        Eigen::Matrix3d block;
-        block << k[0], k[3], k[4], k[3], k[1], k[5], k[4], k[5], k[2];
-        const Eigen::Vector3d u = (p.row(sp.a[s]) - p.row(sp.b[s])).matrix().transpose();
-        const Eigen::Vector3d gs = block * u;
-        reference.row(sp.a[s]) += gs.transpose();
-        reference.row(sp.b[s]) -= gs.transpose();
-      }
-      const double scale = reference.cwiseAbs().maxCoeff();
-      EXPECT_LT((y.matrix() - reference).cwiseAbs().maxCoeff(), 1e-12 * scale) << threads << " threads";
-      return y;
+    const auto check = [&](auto zero, double tolerance) {
+      using S = decltype(zero);
+      ModelBuilder<S> builder;
+      addClothGrid(builder, spec);
+      const ModelAndState<S> cloth = builder.build();
+      ASSERT_TRUE(cloth.model.grid().has_value());
+      const Index n = cloth.model.particleCount();
+      Vec3Array<S> x = cloth.state.x * S(1.1);
+      addNoise<S>(x, 0.001, 21);
+      Vec3Array<S> p = Vec3Array<S>::Zero(n, 3);
+      addNoise<S>(p, 1.0, 22);
+      const auto one = gridProducts<S>(cloth, x, p, 1, true, tolerance);
+      for (const int threads : {2, 3})
+        for (const bool reserve : {true, false}) {
+          const auto other = gridProducts<S>(cloth, x, p, threads, reserve, tolerance);
+          EXPECT_EQ(std::memcmp(one.data(), other.data(), sizeof(S) * 6 * static_cast<size_t>(n)), 0)
+              << sizeof(S) * 8 << " bits, " << threads << " threads, reserve " << reserve;
+        }
     };
-    const Vec3Array<double> one = product(1, true);
-    for (const int threads : {2, 3})
-      for (const bool reserve : {true, false}) {
-        const Vec3Array<double> other = product(threads, reserve);
-        EXPECT_EQ(std::memcmp(one.data(), other.data(), sizeof(double) * 3 * static_cast<size_t>(n)), 0)
-            << threads << " threads, reserve " << reserve;
-      }
+    check(double(0), 1e-12);
+    check(float(0), 1e-4);
   }
 }
 

@@ -842,6 +842,26 @@ TEST(ProjectiveDynamics, TheGridPathsAgreeWithTheGeneralOnes) {
     ASSERT_GT(moved, 1e-3);
     EXPECT_LT((a.state().x - b.state().x).cwiseAbs().maxCoeff(), 1e-9 * moved);
     EXPECT_LT((a.state().v - b.state().v).cwiseAbs().maxCoeff(), 1e-9 * moved * 60);
+    // The grid path on 1 thread (one window for every chunk) and on 2 gives the same bits,
+    // in double and in float.
+    options.threads = 1;
+    Simulation<double> one(ModelAndState<double>{grid.model, grid.state}, options);
+    ASSERT_TRUE(one.run(3).ok()) << one.status().message();
+    EXPECT_EQ(stateHash(one.state()), stateHash(a.state()));
+    ModelBuilder<float> floatBuilder;
+    addClothGrid(floatBuilder, spec);
+    floatBuilder.pin(gridIndex(spec, 0, 0));
+    floatBuilder.pin(gridIndex(spec, 0, spec.width - 1));
+    ModelAndState<float> cloth = floatBuilder.build();
+    perturbFree(cloth.model, cloth.state, 0.01, 0.3, 62);
+    std::uint64_t hashes[2] = {0, 0};
+    for (const int threads : {1, 2}) {
+      options.threads = threads;
+      Simulation<float> f(ModelAndState<float>{cloth.model, cloth.state}, options);
+      ASSERT_TRUE(f.run(3).ok()) << f.status().message();
+      hashes[threads - 1] = stateHash(f.state());
+    }
+    EXPECT_EQ(hashes[0], hashes[1]) << "float, 1 and 2 threads";
   }
 }
 

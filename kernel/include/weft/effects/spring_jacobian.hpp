@@ -38,7 +38,8 @@
 // window, indexed by the spring's first particle (zero where no spring starts), and
 // particle i then sums +g_k[i] - g_k[i - offset_k] over the families in their fixed order:
 // no index lists, the same order for any thread count, and a window that stays in the
-// core's cache (the springs of the two rows above a chunk are computed by both chunks).
+// core's cache (the springs of the rows above a chunk that its gather reaches are computed by
+// both chunks). A sink runs while other chunks still read p: it must not write p.
 //
 // Everything else is sized at construction; the windows, one per thread, by reserve() (or
 // by the first product). linearize() and the products then never allocate.
@@ -63,6 +64,7 @@ class SpringJacobian {
 
   /// Hands (A p) to `sink` block by block: A = M - h df/dv - h^2 df/dx at the
   /// linearisation. p is (n x 3); rows of pinned particles are not special-cased here.
+  /// The sink must not write p (blocks may run while others still read it).
   void systemProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);
   /// Hands (-h^2 df/dx) p to `sink` block by block (no mass, no damping term).
   void stiffnessProduct(const Vec3Array<S>& p, const AccelerationSink<S>& sink, const Executor& exec);
