@@ -821,12 +821,18 @@ TEST(ProjectiveDynamics, TheGridPathsAgreeWithTheGeneralOnes) {
     spec.height = shape.height;
     spec.shearSprings = shape.shear;
     spec.bendSprings = shape.bend;
-    ModelBuilder<double> builder;
-    addClothGrid(builder, spec);
-    builder.pin(gridIndex(spec, 0, 0));
-    builder.pin(gridIndex(spec, 0, spec.width - 1));
-    ModelAndState<double> grid = builder.build();
-    perturbFree(grid.model, grid.state, 0.01, 0.3, 62);
+    // The grid pinned at its first row's corners and disturbed, in precision S.
+    const auto build = [&](auto zero) {
+      using S = decltype(zero);
+      ModelBuilder<S> builder;
+      addClothGrid(builder, spec);
+      builder.pin(gridIndex(spec, 0, 0));
+      builder.pin(gridIndex(spec, 0, spec.width - 1));
+      ModelAndState<S> cloth = builder.build();
+      perturbFree(cloth.model, cloth.state, 0.01, 0.3, 62);
+      return cloth;
+    };
+    const ModelAndState<double> grid = build(double(0));
     const ModelAndState<double> general = withoutGridLayout(grid);
     ASSERT_TRUE(grid.model.grid().has_value());
     ASSERT_FALSE(general.model.grid().has_value());
@@ -848,12 +854,7 @@ TEST(ProjectiveDynamics, TheGridPathsAgreeWithTheGeneralOnes) {
     Simulation<double> one(ModelAndState<double>{grid.model, grid.state}, options);
     ASSERT_TRUE(one.run(3).ok()) << one.status().message();
     EXPECT_EQ(stateHash(one.state()), stateHash(a.state()));
-    ModelBuilder<float> floatBuilder;
-    addClothGrid(floatBuilder, spec);
-    floatBuilder.pin(gridIndex(spec, 0, 0));
-    floatBuilder.pin(gridIndex(spec, 0, spec.width - 1));
-    ModelAndState<float> cloth = floatBuilder.build();
-    perturbFree(cloth.model, cloth.state, 0.01, 0.3, 62);
+    const ModelAndState<float> cloth = build(float(0));
     std::uint64_t hashes[2] = {0, 0};
     for (const int threads : {1, 2}) {
       options.threads = threads;

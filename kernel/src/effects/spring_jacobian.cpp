@@ -164,9 +164,9 @@ template <class S>
 }
 
 // y = sum_k (g_k[i] - g_k[i - offset_k]) over K families in order (+ (m_i + drag) p_i when
-// mass is given) over [0, count): the same additions, in the same order, as K calls of
+// kMass) over [0, count): the same additions, in the same order, as K calls of
 // addStencilFamily then addMassTerm, in one pass (g pointers at the block's first slot).
-template <class S, int K>
+template <class S, int K, bool kMass>
 [[gnu::noinline]] void gatherProducts(Index count, const S* const* g, const Index* offsets, const S* __restrict mass,
                                       S drag, const S* __restrict px, const S* __restrict py, const S* __restrict pz,
                                       S* __restrict yx, S* __restrict yy, S* __restrict yz) {
@@ -180,21 +180,6 @@ template <class S, int K>
     gz[k] = g[3 * k + 2];
     o[k] = offsets[k];
   }
-  if (mass) {
-    for (Index i = 0; i < count; ++i) {
-      S sx = 0, sy = 0, sz = 0;
-      for (int k = 0; k < K; ++k) {
-        sx += gx[k][i] - gx[k][i - o[k]];
-        sy += gy[k][i] - gy[k][i - o[k]];
-        sz += gz[k][i] - gz[k][i - o[k]];
-      }
-      const S mi = mass[i] + drag;
-      yx[i] = sx + mi * px[i];
-      yy[i] = sy + mi * py[i];
-      yz[i] = sz + mi * pz[i];
-    }
-    return;
-  }
   for (Index i = 0; i < count; ++i) {
     S sx = 0, sy = 0, sz = 0;
     for (int k = 0; k < K; ++k) {
@@ -202,9 +187,16 @@ template <class S, int K>
       sy += gy[k][i] - gy[k][i - o[k]];
       sz += gz[k][i] - gz[k][i - o[k]];
     }
-    yx[i] = sx;
-    yy[i] = sy;
-    yz[i] = sz;
+    if constexpr (kMass) {
+      const S mi = mass[i] + drag;
+      yx[i] = sx + mi * px[i];
+      yy[i] = sy + mi * py[i];
+      yz[i] = sz + mi * pz[i];
+    } else {
+      yx[i] = sx;
+      yy[i] = sy;
+      yz[i] = sz;
+    }
   }
 }
 
@@ -235,19 +227,12 @@ SpringJacobian<S>::SpringJacobian(const Model<S>& model)
       gridOffset_.push_back(static_cast<Index>(f.rowOffset) * grid->width + f.columnOffset);
       gridPad_ = std::max(gridPad_, gridOffset_.back());
     }
-    // Chunks of whole sink blocks, at least 2048 particles in double, 4096 in float (the
-    // same bytes), and 16 rows (the rows above a chunk that its gather reaches are
+    // Chunks of whole sink blocks (the rows above a chunk that its gather reaches are
     // recomputed, gridPad_ / W of them: 2 of 16 at 128^2 in double).
-    const Index block = ForceField<S>::kSinkBlock, W = std::max<Index>(grid->width, 1);
-    gridChunk_ = std::max<Index>(ForceField<S>::kStencilChunkParticles * static_cast<Index>(8 / sizeof(S)), 16 * W);
-    gridChunk_ = (gridChunk_ + block - 1) / block * block;
-    // A chunk's rows: from that of b - gridPad_ to that of b + gridChunk_ - 1.
-    gridWindow_ = gridPad_ + ((gridChunk_ + gridPad_ - 1) / W + 2) * W;
-    // Padded so consecutive arrays start 5 cache lines apart modulo 4 KiB (the gather
-    // streams 36 of them at once; at power-of-two strides they share the L1 sets).
-    const Index perLine = static_cast<Index>(64 / sizeof(S)), perPage = static_cast<Index>(4096 / sizeof(S));
-    gridWindow_ = (gridWindow_ + perLine - 1) / perLine * perLine;
-    gridWindow_ += ((5 * perLine - gridWindow_ % perPage) % perPage + perPage) % perPage;
+    const detail::StencilChunks chunks = detail::stencilChunks<S>(
+        grid->width, gridPad_, ForceField<S>::kStencilChunkParticles, ForceField<S>::kSinkBlock);
+    gridChunk_ = chunks.chunk;
+    gridWindow_ = chunks.window;
   }
 }
 
@@ -359,8 +344,8 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
       if (families == 6) {
         const S* g[18];
         for (Index c = 0; c < 18; ++c) g[c] = window + c * gridWindow_ + slot;
-        gatherProducts<S, 6>(m, g, gridOffset_.data(), mass, dragTerm_, col(p, 0) + j0, col(p, 1) + j0, col(p, 2) + j0,
-                             yx, yy, yz);
+        gatherProducts<S, 6, kSystem>(m, g, gridOffset_.data(), mass, dragTerm_, col(p, 0) + j0, col(p, 1) + j0,
+                                      col(p, 2) + j0, yx, yy, yz);
       } else {  // grids without shear or bend springs
         std::fill_n(yx, m, S(0));
         std::fill_n(yy, m, S(0));

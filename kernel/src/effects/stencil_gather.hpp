@@ -4,6 +4,8 @@
 // the Jacobian's stencil products.
 #pragma once
 
+#include <algorithm>
+
 #include "weft/core/types.hpp"
 
 namespace weft::detail {
@@ -18,6 +20,32 @@ template <class S>
     ty[i] += fy[i] - fy[i - offset];
     tz[i] += fz[i] - fz[i - offset];
   }
+}
+
+/// A grid pass run a chunk of particles at a time, each chunk computing the springs of its
+/// rows and of the rows above that its gather reaches into its thread's window (the
+/// Jacobian's products, projective dynamics' local step): particles per chunk (at least
+/// `base` in double, twice that in float, the same bytes, and 16 rows; a multiple of
+/// `align`), and slots per family and axis of a window (`pad` zeros, the largest family
+/// offset, then the rows a chunk touches), padded so consecutive arrays start 5 cache
+/// lines apart modulo 4 KiB (a gather streams 36 of them at once; at power-of-two strides
+/// they would share the L1 sets).
+struct StencilChunks {
+  Index chunk = 0;
+  Index window = 0;
+};
+template <class S>
+StencilChunks stencilChunks(Index width, Index pad, Index base, Index align) {
+  const Index W = std::max<Index>(width, 1);
+  StencilChunks c;
+  c.chunk = std::max<Index>(base * static_cast<Index>(8 / sizeof(S)), 16 * W);
+  c.chunk = (c.chunk + align - 1) / align * align;
+  // A chunk [b, b + chunk) reads the rows from that of b - pad to that of b + chunk - 1.
+  c.window = pad + ((c.chunk + pad - 1) / W + 2) * W;
+  const Index perLine = static_cast<Index>(64 / sizeof(S)), perPage = static_cast<Index>(4096 / sizeof(S));
+  c.window = (c.window + perLine - 1) / perLine * perLine;
+  c.window += ((5 * perLine - c.window % perPage) % perPage + perPage) % perPage;
+  return c;
 }
 
 }  // namespace weft::detail

@@ -76,6 +76,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "effects/stencil_gather.hpp"
 #include "row_blocks.hpp"
 #include "spring_laplacian_solver.hpp"
 #include "weft/effects/spring_force.hpp"
@@ -104,19 +105,16 @@ class Projective final : public Integrator<S> {
     incidence_ = model.springCount() > 0 ? &model.springIncidence() : nullptr;
     if (model.grid()) {
       const GridLayout<S>& grid = *model.grid();
-      const Index W = std::max<Index>(grid.width, 1);
       for (const GridFamily<S>& f : grid.families) {
         familyOffset_.push_back(f.rowOffset * grid.width + f.columnOffset);
         pad_ = std::max(pad_, familyOffset_.back());
       }
-      // Chunks of at least 2048 particles in double (4096 in float: the same bytes) and 16
-      // rows; a chunk's window spans its rows and the pad_ / W rows above that its gather
-      // reaches, after pad_ slots that stay zero (what i - offset reads before particle 0).
-      chunk_ = std::max<Index>(ForceField<S>::kStencilChunkParticles * static_cast<Index>(8 / sizeof(S)), 16 * W);
-      window_ = pad_ + ((chunk_ + pad_ - 1) / W + 2) * W;
-      const Index perLine = static_cast<Index>(64 / sizeof(S)), perPage = static_cast<Index>(4096 / sizeof(S));
-      window_ = (window_ + perLine - 1) / perLine * perLine;
-      window_ += ((5 * perLine - window_ % perPage) % perPage + perPage) % perPage;  // 4 KiB aliasing
+      // A chunk's window spans its rows and the pad_ / W rows above that its gather reaches,
+      // after pad_ slots that stay zero (what i - offset reads before particle 0).
+      const StencilChunks chunks =
+          stencilChunks<S>(grid.width, pad_, ForceField<S>::kStencilChunkParticles, ForceField<S>::kSinkBlock);
+      chunk_ = chunks.chunk;
+      window_ = chunks.window;
     }
   }
   void reserve(const Executor& exec) override {
