@@ -297,9 +297,9 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
   // i - offset_k reads before the grid's first particle). Springs starting in the rows above
   // the chunk are recomputed here rather than shared with the chunk above: the values are
   // bitwise the same either way, and the window stays in this core's cache (a buffer of the
-  // whole grid, 144 bytes a particle in double, streamed out and back through memory and
-  // took 1.4x the time on the 128^2 flag). A window per thread, as the force field's
-  // stencil has: each chunk writes every slot its gather reads.
+  // whole grid, 144 bytes a particle in double, streamed out and back through memory: the
+  // product took 1.3-1.9x this time at 256^2, docs/benchmarks.md). A window per thread, as
+  // the force field's stencil has: each chunk writes every slot its gather reads.
   exec.parallelFor(model_->particleCount(), gridChunk_, [&](Index b, Index e) {
     const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
     if (thread < 0 || static_cast<size_t>(thread) >= slots)
