@@ -186,11 +186,9 @@ class Projective final : public Integrator<S> {
         gridResidual(x0, h, drag, permuted, exec);
       } else {
         localStep(x0, h, exec);
-        // The residual r = b(dx) - P dx, gathered per particle (grid: by stencil; else in its
-        // incidence order), into the factor's ordering with the coordinates interleaved.
+        // The residual r = b(dx) - P dx, gathered per particle in its incidence order, into
+        // the factor's ordering with the coordinates interleaved.
         exec.parallelFor(n_, kGrain, [&](Index b, Index e) {
-          alignas(64) S sum[3][kGrain];
-          const bool grid = gatherBlock(springTerm_, b, e, sum);
           for (Index i = b; i < e; ++i) {
             double* out = permuted + global_.offset(i);
             if (free_[i] == S(0)) {  // dx = h v0 already: no correction
@@ -198,10 +196,7 @@ class Projective final : public Integrator<S> {
               continue;
             }
             S f[3] = {0, 0, 0};
-            if (grid)
-              for (int c = 0; c < 3; ++c) f[c] = sum[c][i - b];
-            else if (incidence_ != nullptr)
-              gatherSprings(springTerm_, i, f);
+            if (incidence_ != nullptr) gatherSprings(springTerm_, i, f);
             const double diagonal = static_cast<double>(mass[i]) + static_cast<double>(h) * static_cast<double>(drag);
             for (int c = 0; c < 3; ++c)
               out[c] = (static_cast<double>(constant_(i, c)) + static_cast<double>(f[c])) -
