@@ -203,16 +203,14 @@ ForceField<S>::~ForceField() = default;
 
 template <class S>
 size_t ForceField<S>::stencilWindowCount(const Executor& exec) const {
-  const bool serial = exec.threadCount() == 1 || Executor::blockCount(model_->grid()->height, chunkRows_) == 1;
-  return serial ? 1 : static_cast<size_t>(exec.threadCount());
+  return detail::stencilWindowCount(exec, Executor::blockCount(model_->grid()->height, chunkRows_));
 }
 
 template <class S>
 void ForceField<S>::reserve(const Executor& exec) {
   if (strategy_ != ForceStrategy::GridStencil) return;
   const size_t perWindow = model_->grid()->families.size() * 3 * static_cast<size_t>(windowSize_);
-  const size_t size = stencilWindowCount(exec) * perWindow;
-  if (stencilWindows_.size() < size) stencilWindows_.assign(size, S(0));
+  detail::reserveStencilWindows(stencilWindows_, stencilWindowCount(exec), perWindow);
 }
 
 template <class S>
@@ -338,15 +336,9 @@ void ForceField<S>::stencilForces(const Vec3Array<S>& x, const Vec3Array<S>& v, 
   // calls it when built) or else by the first pass, and again only for more threads.
   const size_t perWindow = static_cast<size_t>(familyCount) * 3 * static_cast<size_t>(windowSize_);
   const size_t slots = stencilWindowCount(exec);
-  const bool serial = slots == 1;
   reserve(exec);
   exec.parallelFor(H, chunkRows_, [&](Index r0, Index r1) {
-    // The thread's slot in the executor's arena; the serial path (one thread or one chunk)
-    // may run outside it and uses window 0.
-    const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
-    if (thread < 0 || static_cast<size_t>(thread) >= slots)
-      throw std::logic_error("ForceField: a stencil chunk ran outside the executor's arena");
-    S* window = stencilWindows_.data() + static_cast<size_t>(thread) * perWindow;
+    S* window = detail::stencilWindow(stencilWindows_, slots, perWindow, "ForceField");
     const Index span = (r1 - r0 + halo) * W;  // the slots the gather below reads
     for (Index k = 0; k < familyCount; ++k) {
       const GridFamily<S>& f = g.families[k];

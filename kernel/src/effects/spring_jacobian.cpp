@@ -268,15 +268,14 @@ void SpringJacobian<S>::linearize(const Vec3Array<S>& x, S h, const Executor& ex
 
 template <class S>
 size_t SpringJacobian<S>::windowCount(const Executor& exec) const {
-  const bool serial = exec.threadCount() == 1 || Executor::blockCount(model_->particleCount(), gridChunk_) == 1;
-  return serial ? 1 : static_cast<size_t>(exec.threadCount());
+  return detail::stencilWindowCount(exec, Executor::blockCount(model_->particleCount(), gridChunk_));
 }
 
 template <class S>
 void SpringJacobian<S>::reserve(const Executor& exec) {
   if (gridOffset_.empty()) return;
-  const size_t size = windowCount(exec) * gridOffset_.size() * 3 * static_cast<size_t>(gridWindow_);
-  if (gridWindows_.size() < size) gridWindows_.assign(size, S(0));
+  detail::reserveStencilWindows(gridWindows_, windowCount(exec),
+                                gridOffset_.size() * 3 * static_cast<size_t>(gridWindow_));
 }
 
 template <class S>
@@ -288,7 +287,6 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
   constexpr Index kBlock = ForceField<S>::kSinkBlock;
   const size_t perWindow = static_cast<size_t>(families) * 3 * static_cast<size_t>(gridWindow_);
   const size_t slots = windowCount(exec);
-  const bool serial = slots == 1;
   reserve(exec);
   // One task per chunk of particles [b, e) (a whole number of sink blocks, so the sink sees
   // the same blocks for any chunking). Its window holds, per family and axis, the product of
@@ -301,10 +299,7 @@ void SpringJacobian<S>::gridProduct(const Vec3Array<S>& p, const AccelerationSin
   // product took 1.3-1.9x this time at 256^2, docs/benchmarks.md). A window per thread, as
   // the force field's stencil has: each chunk writes every slot its gather reads.
   exec.parallelFor(model_->particleCount(), gridChunk_, [&](Index b, Index e) {
-    const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
-    if (thread < 0 || static_cast<size_t>(thread) >= slots)
-      throw std::logic_error("SpringJacobian: a stencil chunk ran outside the executor's arena");
-    S* window = gridWindows_.data() + static_cast<size_t>(thread) * perWindow;
+    S* window = detail::stencilWindow(gridWindows_, slots, perWindow, "SpringJacobian");
     const Index rowFirst = b > gridPad_ ? (b - gridPad_) / W : 0, rowEnd = (e - 1) / W + 1;
     // Window slot of particle i: gridPad_ + i - rowFirst W (>= 0 for every i the gather reads).
     const Index shift = gridPad_ - rowFirst * W;

@@ -1,11 +1,16 @@
 // effects/stencil_gather.hpp (internal) — the gather of the grid stencil: a particle's sum
 // over one spring family is that family's value at its own row minus the value `offset`
-// rows back (the spring that ends there). Shared by the force field's stencil strategy and
-// the Jacobian's stencil products.
+// rows back (the spring that ends there). Shared by the force field's stencil strategy, the
+// Jacobian's stencil products and projective dynamics' grid pass, with the per-thread
+// windows those passes compute a chunk's springs into.
 #pragma once
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
+#include "weft/core/parallel.hpp"
 #include "weft/core/types.hpp"
 
 namespace weft::detail {
@@ -20,6 +25,31 @@ template <class S>
     ty[i] += fy[i] - fy[i - offset];
     tz[i] += fz[i] - fz[i - offset];
   }
+}
+
+/// Windows a pass of `chunks` tasks on `exec` uses: 1 when it runs serially (one thread or
+/// one chunk: Executor::parallelFor then calls the body directly, maybe outside the arena),
+/// else one per thread of the arena.
+inline std::size_t stencilWindowCount(const Executor& exec, Index chunks) {
+  return exec.threadCount() == 1 || chunks == 1 ? 1 : static_cast<std::size_t>(exec.threadCount());
+}
+
+/// Makes `slots` windows of `perWindow` values unless there are that many already (a pass
+/// writes every slot it reads before reading it, so their contents never matter).
+template <class S>
+void reserveStencilWindows(std::vector<S>& windows, std::size_t slots, std::size_t perWindow) {
+  if (windows.size() < slots * perWindow) windows.assign(slots * perWindow, S(0));
+}
+
+/// The window of the task calling it, among `slots` (stencilWindowCount): the thread's
+/// slot in the executor's arena, or window 0 on the serial path. `who` names the pass in
+/// the logic_error thrown if the task runs outside the arena.
+template <class S>
+S* stencilWindow(std::vector<S>& windows, std::size_t slots, std::size_t perWindow, const char* who) {
+  const int thread = slots == 1 ? 0 : tbb::this_task_arena::current_thread_index();
+  if (thread < 0 || static_cast<std::size_t>(thread) >= slots)
+    throw std::logic_error(std::string(who) + ": a stencil chunk ran outside the executor's arena");
+  return windows.data() + static_cast<std::size_t>(thread) * perWindow;
 }
 
 /// A grid pass run a chunk of particles at a time, each chunk computing the springs of its

@@ -119,8 +119,7 @@ class Projective final : public Integrator<S> {
   }
   void reserve(const Executor& exec) override {
     if (familyOffset_.empty()) return;
-    const size_t size = windowCount(exec) * familyOffset_.size() * 3 * static_cast<size_t>(window_);
-    if (windows_.size() < size) windows_.assign(size, S(0));
+    reserveStencilWindows(windows_, windowCount(exec), familyOffset_.size() * 3 * static_cast<size_t>(window_));
   }
   IntegratorKind kind() const override { return IntegratorKind::Projective; }
 
@@ -341,10 +340,7 @@ class Projective final : public Integrator<S> {
     }
   }
 
-  size_t windowCount(const Executor& exec) const {
-    const bool serial = exec.threadCount() == 1 || Executor::blockCount(n_, chunk_) == 1;
-    return serial ? 1 : static_cast<size_t>(exec.threadCount());
-  }
+  size_t windowCount(const Executor& exec) const { return stencilWindowCount(exec, Executor::blockCount(n_, chunk_)); }
 
   /// On a grid, the local step and the gather of the residual in one pass: per chunk of
   /// particles, the springs of its rows and of the rows above that its gather reaches
@@ -361,13 +357,9 @@ class Projective final : public Integrator<S> {
     const S h2 = h * h;
     const size_t perWindow = static_cast<size_t>(families) * 3 * static_cast<size_t>(window_);
     const size_t slots = windowCount(exec);
-    const bool serial = slots == 1;
     reserve(exec);
     exec.parallelFor(n_, chunk_, [&](Index b, Index e) {
-      const int thread = serial ? 0 : tbb::this_task_arena::current_thread_index();
-      if (thread < 0 || static_cast<size_t>(thread) >= slots)
-        throw std::logic_error("projective dynamics: a stencil chunk ran outside the executor's arena");
-      S* window = windows_.data() + static_cast<size_t>(thread) * perWindow;
+      S* window = stencilWindow(windows_, slots, perWindow, "projective dynamics");
       const Index rowFirst = b > pad_ ? (b - pad_) / W : 0, rowEnd = (e - 1) / W + 1;
       const Index shift = pad_ - rowFirst * W;  // window slot of particle i: i + shift
       for (Index k = 0; k < families; ++k) {
