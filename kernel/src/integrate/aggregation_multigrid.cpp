@@ -1,5 +1,7 @@
 #include "aggregation_multigrid.hpp"
 
+#include "row_blocks.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <tuple>
@@ -101,6 +103,63 @@ void storeBlock(double* to, Index n, Index i, const SymmetricBlock& m) {
   to[5 * n + i] = m.yz;
 }
 
+// The fine level's per-particle passes of a cycle, as out-of-line loops over restrict
+// pointers (offset to the first particle) so that they vectorise; the same arithmetic, in
+// the same order, as one particle at a time. `inv` holds the smoother's block inverses as
+// six arrays of stride `stride` (xx yy zz xy xz yz; zero on pinned particles).
+
+// x = w D^-1 r.
+template <class S>
+[[gnu::noinline]] void smoothFromZero(Index count, const double* __restrict inv, Index stride, double w,
+                                      const S* __restrict r0, const S* __restrict r1, const S* __restrict r2,
+                                      S* __restrict x0, S* __restrict x1, S* __restrict x2) {
+  const double* __restrict xx = inv;
+  const double* __restrict yy = inv + stride;
+  const double* __restrict zz = inv + 2 * stride;
+  const double* __restrict xy = inv + 3 * stride;
+  const double* __restrict xz = inv + 4 * stride;
+  const double* __restrict yz = inv + 5 * stride;
+  for (Index i = 0; i < count; ++i) {
+    const double t0 = static_cast<double>(r0[i]), t1 = static_cast<double>(r1[i]), t2 = static_cast<double>(r2[i]);
+    x0[i] = static_cast<S>((xx[i] * t0 + xy[i] * t1 + xz[i] * t2) * w);
+    x1[i] = static_cast<S>((xy[i] * t0 + yy[i] * t1 + yz[i] * t2) * w);
+    x2[i] = static_cast<S>((xz[i] * t0 + yz[i] * t1 + zz[i] * t2) * w);
+  }
+}
+
+// t = r - y on free particles, 0 on pinned ones (one axis).
+template <class S>
+[[gnu::noinline]] void freeDifference(Index count, const char* __restrict free, const S* __restrict r,
+                                      const S* __restrict y, S* __restrict t) {
+  for (Index i = 0; i < count; ++i) t[i] = free[i] != 0 ? r[i] - y[i] : S(0);
+}
+
+// z = x + w D^-1 (r - y) on free particles, 0 on pinned ones.
+template <class S>
+[[gnu::noinline]] void smoothAfter(Index count, const char* __restrict free, const double* __restrict inv,
+                                   Index stride, double w, const S* __restrict r0, const S* __restrict r1,
+                                   const S* __restrict r2, const S* __restrict y0, const S* __restrict y1,
+                                   const S* __restrict y2, const S* __restrict x0, const S* __restrict x1,
+                                   const S* __restrict x2, S* __restrict z0, S* __restrict z1, S* __restrict z2) {
+  const double* __restrict xx = inv;
+  const double* __restrict yy = inv + stride;
+  const double* __restrict zz = inv + 2 * stride;
+  const double* __restrict xy = inv + 3 * stride;
+  const double* __restrict xz = inv + 4 * stride;
+  const double* __restrict yz = inv + 5 * stride;
+  for (Index i = 0; i < count; ++i) {
+    const double t0 = static_cast<double>(r0[i] - y0[i]), t1 = static_cast<double>(r1[i] - y1[i]),
+                 t2 = static_cast<double>(r2[i] - y2[i]);
+    const double d0 = (xx[i] * t0 + xy[i] * t1 + xz[i] * t2) * w;
+    const double d1 = (xy[i] * t0 + yy[i] * t1 + yz[i] * t2) * w;
+    const double d2 = (xz[i] * t0 + yz[i] * t1 + zz[i] * t2) * w;
+    const bool isFree = free[i] != 0;
+    z0[i] = isFree ? static_cast<S>(static_cast<double>(x0[i]) + d0) : S(0);
+    z1[i] = isFree ? static_cast<S>(static_cast<double>(x1[i]) + d1) : S(0);
+    z2[i] = isFree ? static_cast<S>(static_cast<double>(x2[i]) + d2) : S(0);
+  }
+}
+
 }  // namespace
 
 template <class S>
@@ -108,7 +167,7 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model, bool stenci
     : model_(&model),
       n_(model.particleCount()),
       free_(static_cast<size_t>(model.particleCount())),
-      fineInverse_(static_cast<size_t>(model.particleCount())),
+      fineInverse_(6 * static_cast<size_t>(model.particleCount()), 0.0),
       x_(model.particleCount(), 3),
       t_(model.particleCount(), 3) {
   x_.setZero();
@@ -335,14 +394,13 @@ void AggregationMultigrid<S>::prepare(const SpringJacobian<S>& jacobian, const E
   const Vec3Array<S>& d = jacobian.diagonal();
   const Vec3Array<S>& o = jacobian.offDiagonal();
   exec.parallelFor(n_, kBlock, [&](Index b, Index e) {
-    for (Index i = b; i < e; ++i) {
-      fineInverse_[static_cast<size_t>(i)] =
-          free_[static_cast<size_t>(i)]
-              ? inverse(SymmetricBlock{static_cast<double>(d(i, 0)), static_cast<double>(d(i, 1)),
-                                       static_cast<double>(d(i, 2)), static_cast<double>(o(i, 0)),
-                                       static_cast<double>(o(i, 1)), static_cast<double>(o(i, 2))})
-              : SymmetricBlock{};
-    }
+    for (Index i = b; i < e; ++i)
+      storeBlock(fineInverse_.data(), n_, i,
+                 free_[static_cast<size_t>(i)]
+                     ? inverse(SymmetricBlock{static_cast<double>(d(i, 0)), static_cast<double>(d(i, 1)),
+                                              static_cast<double>(d(i, 2)), static_cast<double>(o(i, 0)),
+                                              static_cast<double>(o(i, 1)), static_cast<double>(o(i, 2))})
+                     : SymmetricBlock{});
   });
   for (size_t k = 0; k < levels_.size(); ++k)
     assemble(levels_[k], k == 0 ? nullptr : &levels_[k - 1], k == 0 ? &jacobian : nullptr, exec);
@@ -632,28 +690,19 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
 template <class S>
 void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z,
                                     std::vector<double>& partials, Index block, const Executor& exec) {
-  auto smoothed = [&](Index i, const double* t, double* out) {  // w D^-1 t
-    multiply(fineInverse_[static_cast<size_t>(i)], t, out);
-    for (int c = 0; c < 3; ++c) out[c] *= kSmoothing;
-  };
+  const char* free = free_.data();
+  const double* inv = fineInverse_.data();
+  auto col = [](auto& m, int c) { return m.data() + c * m.rows(); };
   // Pre-smoothing from zero: x = w D^-1 r.
   exec.parallelFor(n_, block, [&](Index b, Index e) {
-    for (Index i = b; i < e; ++i) {
-      const double t[3] = {static_cast<double>(r(i, 0)), static_cast<double>(r(i, 1)), static_cast<double>(r(i, 2))};
-      double dz[3];
-      smoothed(i, t, dz);
-      for (int c = 0; c < 3; ++c) x_(i, c) = static_cast<S>(dz[c]);
-    }
+    smoothFromZero<S>(e - b, inv + b, n_, kSmoothing, col(r, 0) + b, col(r, 1) + b, col(r, 2) + b, col(x_, 0) + b,
+                      col(x_, 1) + b, col(x_, 2) + b);
   });
   if (!levels_.empty()) {
     // t = r - A x (filtered), restricted to the first coarse level.
     auto residual = [&](Index b, Index m, const S* ax, const S* ay, const S* az) {
       const S* y[3] = {ax, ay, az};
-      for (Index t = 0; t < m; ++t) {
-        const Index i = b + t;
-        const bool isFree = free_[static_cast<size_t>(i)] != 0;
-        for (int c = 0; c < 3; ++c) t_(i, c) = isFree ? r(i, c) - y[c][t] : S(0);
-      }
+      for (int c = 0; c < 3; ++c) freeDifference<S>(m, free + b, col(r, c) + b, y[c], col(t_, c) + b);
     };
     jacobian.systemProduct(x_, makeSink<S>(residual), exec);
     Level& coarse = levels_.front();
@@ -671,26 +720,14 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
       }
     });
   }
-  // Post-smoothing: z = x + w D^-1 (r - A x), and r . z per block.
+  // Post-smoothing: z = x + w D^-1 (r - A x), and r . z per block (per axis, vectorised, as
+  // the CG's own dot products: the same order for any thread count).
   auto post = [&](Index b, Index m, const S* ax, const S* ay, const S* az) {
-    const S* y[3] = {ax, ay, az};
+    smoothAfter<S>(m, free + b, inv + b, n_, kSmoothing, col(r, 0) + b, col(r, 1) + b, col(r, 2) + b, ax, ay, az,
+                   col(x_, 0) + b, col(x_, 1) + b, col(x_, 2) + b, col(z, 0) + b, col(z, 1) + b, col(z, 2) + b);
     double rz = 0;
-    for (Index t = 0; t < m; ++t) {
-      const Index i = b + t;
-      if (!free_[static_cast<size_t>(i)]) {
-        for (int c = 0; c < 3; ++c) z(i, c) = S(0);
-        continue;
-      }
-      const double res[3] = {static_cast<double>(r(i, 0) - y[0][t]), static_cast<double>(r(i, 1) - y[1][t]),
-                             static_cast<double>(r(i, 2) - y[2][t])};
-      double dz[3];
-      smoothed(i, res, dz);
-      for (int c = 0; c < 3; ++c) {
-        const S zi = static_cast<S>(static_cast<double>(x_(i, c)) + dz[c]);
-        z(i, c) = zi;
-        rz += static_cast<double>(r(i, c)) * static_cast<double>(zi);
-      }
-    }
+    for (int c = 0; c < 3; ++c)
+      rz += (rows(r, c, b, m).template cast<double>() * rows(z, c, b, m).template cast<double>()).sum();
     partials[static_cast<size_t>(b / block)] = rz;
   };
   jacobian.systemProduct(x_, makeSink<S>(post), exec);
