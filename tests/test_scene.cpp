@@ -37,10 +37,9 @@ using ::testing::HasSubstr;
 
 const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
 const std::vector<std::string> kExamples = {
-    "rope",      "flag-wind",  "cloth-mesh",    "hanging-cloth", "drape",          "drape-mesh",       "rope-on-pegs",
-    "fast-ball", "tablecloth", "ball-on-brick", "stack",         "rigid-showcase", "tablecloth-trick", "hammock",
-    "pile",      "fold",       "two-cloths",    "flag-wind-pd",  "spikes",
-    "flag-wind-implicit"};
+    "rope",      "flag-wind",  "cloth-mesh",    "hanging-cloth", "drape",          "drape-mesh",        "rope-on-pegs",
+    "fast-ball", "tablecloth", "ball-on-brick", "stack",         "rigid-showcase", "tablecloth-trick",  "hammock",
+    "pile",      "fold",       "two-cloths",    "flag-wind-pd",  "spikes",         "flag-wind-implicit"};
 
 std::string examplePath(const std::string& name) { return kScenes + "/" + name + ".json"; }
 

@@ -1,10 +1,10 @@
 #include "aggregation_multigrid.hpp"
 
-#include "row_blocks.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+
+#include "row_blocks.hpp"
 
 namespace weft::detail {
 
@@ -136,11 +136,11 @@ template <class S>
 
 // z = x + w D^-1 (r - y) on free particles, 0 on pinned ones.
 template <class S>
-[[gnu::noinline]] void smoothAfter(Index count, const char* __restrict free, const double* __restrict inv,
-                                   Index stride, double w, const S* __restrict r0, const S* __restrict r1,
-                                   const S* __restrict r2, const S* __restrict y0, const S* __restrict y1,
-                                   const S* __restrict y2, const S* __restrict x0, const S* __restrict x1,
-                                   const S* __restrict x2, S* __restrict z0, S* __restrict z1, S* __restrict z2) {
+[[gnu::noinline]] void smoothAfter(Index count, const char* __restrict free, const double* __restrict inv, Index stride,
+                                   double w, const S* __restrict r0, const S* __restrict r1, const S* __restrict r2,
+                                   const S* __restrict y0, const S* __restrict y1, const S* __restrict y2,
+                                   const S* __restrict x0, const S* __restrict x1, const S* __restrict x2,
+                                   S* __restrict z0, S* __restrict z1, S* __restrict z2) {
   const double* __restrict xx = inv;
   const double* __restrict yy = inv + stride;
   const double* __restrict zz = inv + 2 * stride;

@@ -161,12 +161,12 @@ class AggregationMultigrid {
   const Model<S>* model_;
   Index n_ = 0;
   std::vector<char> free_;
-  std::vector<Level> levels_;                // coarse levels, finest first
-  std::vector<double> fineInverse_;          // (6 n) fine 3x3 block inverses, xx yy zz xy xz yz arrays (0: pinned)
-  Vec3Array<S> x_, t_;                       // fine smoothing iterate and residual
-  std::vector<double> dense_;                // coarsest: (3 active)^2 Cholesky factor, then 1 / its diagonal
-  std::vector<Index> denseNode_;             // coarsest: the slot of each of its active nodes
-  std::vector<double> denseRhs_;             // coarsest: (3 active) right-hand side, then solution
+  std::vector<Level> levels_;        // coarse levels, finest first
+  std::vector<double> fineInverse_;  // (6 n) fine 3x3 block inverses, xx yy zz xy xz yz arrays (0: pinned)
+  Vec3Array<S> x_, t_;               // fine smoothing iterate and residual
+  std::vector<double> dense_;        // coarsest: (3 active)^2 Cholesky factor, then 1 / its diagonal
+  std::vector<Index> denseNode_;     // coarsest: the slot of each of its active nodes
+  std::vector<double> denseRhs_;     // coarsest: (3 active) right-hand side, then solution
   bool denseCoarsest_ = false;
 };
 
