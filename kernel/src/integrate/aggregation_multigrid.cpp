@@ -108,22 +108,28 @@ void storeBlock(double* to, Index n, Index i, const SymmetricBlock& m) {
 // the same order, as one particle at a time. `inv` holds the smoother's block inverses as
 // six arrays of stride `stride` (xx yy zz xy xz yz; zero on pinned particles).
 
+// (d0, d1, d2) = w D_i^-1 (t0, t1, t2).
+inline void smoothingStep(const double* __restrict inv, Index stride, Index i, double w, double t0, double t1,
+                          double t2, double& d0, double& d1, double& d2) {
+  const double xx = inv[i], yy = inv[stride + i], zz = inv[2 * stride + i];
+  const double xy = inv[3 * stride + i], xz = inv[4 * stride + i], yz = inv[5 * stride + i];
+  d0 = (xx * t0 + xy * t1 + xz * t2) * w;
+  d1 = (xy * t0 + yy * t1 + yz * t2) * w;
+  d2 = (xz * t0 + yz * t1 + zz * t2) * w;
+}
+
 // x = w D^-1 r.
 template <class S>
 [[gnu::noinline]] void smoothFromZero(Index count, const double* __restrict inv, Index stride, double w,
                                       const S* __restrict r0, const S* __restrict r1, const S* __restrict r2,
                                       S* __restrict x0, S* __restrict x1, S* __restrict x2) {
-  const double* __restrict xx = inv;
-  const double* __restrict yy = inv + stride;
-  const double* __restrict zz = inv + 2 * stride;
-  const double* __restrict xy = inv + 3 * stride;
-  const double* __restrict xz = inv + 4 * stride;
-  const double* __restrict yz = inv + 5 * stride;
   for (Index i = 0; i < count; ++i) {
-    const double t0 = static_cast<double>(r0[i]), t1 = static_cast<double>(r1[i]), t2 = static_cast<double>(r2[i]);
-    x0[i] = static_cast<S>((xx[i] * t0 + xy[i] * t1 + xz[i] * t2) * w);
-    x1[i] = static_cast<S>((xy[i] * t0 + yy[i] * t1 + yz[i] * t2) * w);
-    x2[i] = static_cast<S>((xz[i] * t0 + yz[i] * t1 + zz[i] * t2) * w);
+    double d0, d1, d2;
+    smoothingStep(inv, stride, i, w, static_cast<double>(r0[i]), static_cast<double>(r1[i]), static_cast<double>(r2[i]),
+                  d0, d1, d2);
+    x0[i] = static_cast<S>(d0);
+    x1[i] = static_cast<S>(d1);
+    x2[i] = static_cast<S>(d2);
   }
 }
 
@@ -141,18 +147,10 @@ template <class S>
                                    const S* __restrict y0, const S* __restrict y1, const S* __restrict y2,
                                    const S* __restrict x0, const S* __restrict x1, const S* __restrict x2,
                                    S* __restrict z0, S* __restrict z1, S* __restrict z2) {
-  const double* __restrict xx = inv;
-  const double* __restrict yy = inv + stride;
-  const double* __restrict zz = inv + 2 * stride;
-  const double* __restrict xy = inv + 3 * stride;
-  const double* __restrict xz = inv + 4 * stride;
-  const double* __restrict yz = inv + 5 * stride;
   for (Index i = 0; i < count; ++i) {
-    const double t0 = static_cast<double>(r0[i] - y0[i]), t1 = static_cast<double>(r1[i] - y1[i]),
-                 t2 = static_cast<double>(r2[i] - y2[i]);
-    const double d0 = (xx[i] * t0 + xy[i] * t1 + xz[i] * t2) * w;
-    const double d1 = (xy[i] * t0 + yy[i] * t1 + yz[i] * t2) * w;
-    const double d2 = (xz[i] * t0 + yz[i] * t1 + zz[i] * t2) * w;
+    double d0, d1, d2;
+    smoothingStep(inv, stride, i, w, static_cast<double>(r0[i] - y0[i]), static_cast<double>(r1[i] - y1[i]),
+                  static_cast<double>(r2[i] - y2[i]), d0, d1, d2);
     const bool isFree = free[i] != 0;
     z0[i] = isFree ? static_cast<S>(static_cast<double>(x0[i]) + d0) : S(0);
     z1[i] = isFree ? static_cast<S>(static_cast<double>(x1[i]) + d1) : S(0);
