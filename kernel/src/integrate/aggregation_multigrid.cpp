@@ -158,6 +158,47 @@ template <class S>
   }
 }
 
+// A coarse level's sweep: z = x + w D^-1 t, or w D^-1 t (kFromZero; x unused).
+template <bool kFromZero>
+[[gnu::noinline]] void smoothSlots(Index count, const double* __restrict inv, Index stride, double w,
+                                   const double* __restrict t0, const double* __restrict t1,
+                                   const double* __restrict t2, const double* __restrict x0,
+                                   const double* __restrict x1, const double* __restrict x2, double* __restrict z0,
+                                   double* __restrict z1, double* __restrict z2) {
+  for (Index i = 0; i < count; ++i) {
+    double d0, d1, d2;
+    smoothingStep(inv, stride, i, w, t0[i], t1[i], t2[i], d0, d1, d2);
+    if constexpr (kFromZero) {
+      z0[i] = d0;
+      z1[i] = d1;
+      z2[i] = d2;
+    } else {
+      z0[i] = x0[i] + d0;
+      z1[i] = x1[i] + d1;
+      z2[i] = x2[i] + d2;
+    }
+  }
+}
+
+// Prolongation onto [0, count): x_i += scale (y_a + s_a), a = aggregate[i] (kSaved; else
+// x_i += scale y_a), where a >= 0; y and s are the coarse level's axis arrays.
+template <bool kSaved, class S>
+[[gnu::noinline]] void prolongate(Index count, const Index* __restrict aggregate, double scale,
+                                  const double* __restrict y0, const double* __restrict y1, const double* __restrict y2,
+                                  const double* __restrict s0, const double* __restrict s1, const double* __restrict s2,
+                                  S* __restrict x0, S* __restrict x1, S* __restrict x2) {
+  for (Index i = 0; i < count; ++i) {
+    const Index a = aggregate[i];
+    if (a < 0) continue;
+    const double c0 = kSaved ? y0[a] + s0[a] : y0[a];
+    const double c1 = kSaved ? y1[a] + s1[a] : y1[a];
+    const double c2 = kSaved ? y2[a] + s2[a] : y2[a];
+    x0[i] = static_cast<S>(static_cast<double>(x0[i]) + scale * c0);
+    x1[i] = static_cast<S>(static_cast<double>(x1[i]) + scale * c1);
+    x2[i] = static_cast<S>(static_cast<double>(x2[i]) + scale * c2);
+  }
+}
+
 }  // namespace
 
 template <class S>
@@ -223,7 +264,7 @@ AggregationMultigrid<S>::AggregationMultigrid(const Model<S>& model, bool stenci
     const auto nodes = static_cast<size_t>(l.n);
     l.ground.assign(nodes, SymmetricBlock{});
     l.diagonal.assign(nodes, SymmetricBlock{});
-    l.inverse.assign(nodes, SymmetricBlock{});
+    l.inverse.assign(6 * nodes, 0.0);
     l.edge.assign(l.edgeU.size(), SymmetricBlock{});
     l.b.assign(3 * nodes, 0.0);
     l.x.assign(3 * nodes, 0.0);
@@ -458,7 +499,7 @@ void AggregationMultigrid<S>::assemble(Level& level, const Level* finer, const S
         add(diagonal, level.edge[static_cast<size_t>(code >= 0 ? code : ~code)]);
       }
       level.diagonal[ua] = diagonal;
-      level.inverse[ua] = inverse(diagonal);
+      storeBlock(level.inverse.data(), level.n, a, inverse(diagonal));
     }
   });
 }
@@ -479,13 +520,15 @@ void AggregationMultigrid<S>::residual(Level& level, const std::vector<double>& 
   auto finish = [&](Index from, Index to, const double* out, Index stride) {
     for (int c = 0; c < 3; ++c)
       for (Index a = from; a < to; ++a) T[c * n + a] = B[c * n + a] - out[c * stride + a - from];
-    if (Z)
-      for (Index a = from; a < to; ++a) {
-        const double ta[3] = {T[a], T[n + a], T[2 * n + a]};
-        double dz[3];
-        multiply(level.inverse[static_cast<size_t>(a)], ta, dz);
-        for (int c = 0; c < 3; ++c) Z[c * n + a] = fromZero ? kSmoothing * dz[c] : X[c * n + a] + kSmoothing * dz[c];
-      }
+    if (!Z) return;
+    const double* inv = level.inverse.data() + from;
+    const Index m = to - from;
+    if (fromZero)
+      smoothSlots<true>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, nullptr, nullptr, nullptr,
+                        Z + from, Z + n + from, Z + 2 * n + from);
+    else
+      smoothSlots<false>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, X + from, X + n + from,
+                         X + 2 * n + from, Z + from, Z + n + from, Z + 2 * n + from);
   };
   if (level.stencil) {
     // Slots outside [first, last) are the ring's first and last rows (and one slot more):
@@ -525,20 +568,26 @@ void AggregationMultigrid<S>::residual(Level& level, const std::vector<double>& 
     }
   });
   exec.parallelFor(n, grain, [&](Index b, Index e) {
-    for (Index a = b; a < e; ++a) {
-      const auto ua = static_cast<size_t>(a);
-      const double xa[3] = {X[a], X[n + a], X[2 * n + a]};
-      double out[3];
-      multiply(level.ground[ua], xa, out);
-      for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
-        const Index code = level.incident[static_cast<size_t>(p)];
-        const double* g = level.g.data() + 3 * (code >= 0 ? code : ~code);
-        const double sign = code >= 0 ? 1.0 : -1.0;
-        out[0] += sign * g[0];
-        out[1] += sign * g[1];
-        out[2] += sign * g[2];
+    constexpr Index kChunk = 256;
+    alignas(64) double out[3 * kChunk];
+    for (Index c0 = b; c0 < e; c0 += kChunk) {
+      const Index c1 = std::min(e, c0 + kChunk);
+      for (Index a = c0; a < c1; ++a) {
+        const auto ua = static_cast<size_t>(a);
+        const double xa[3] = {X[a], X[n + a], X[2 * n + a]};
+        double y[3];
+        multiply(level.ground[ua], xa, y);
+        for (Index p = level.incidenceOffset[ua]; p < level.incidenceOffset[ua + 1]; ++p) {
+          const Index code = level.incident[static_cast<size_t>(p)];
+          const double* g = level.g.data() + 3 * (code >= 0 ? code : ~code);
+          const double sign = code >= 0 ? 1.0 : -1.0;
+          y[0] += sign * g[0];
+          y[1] += sign * g[1];
+          y[2] += sign * g[2];
+        }
+        for (int c = 0; c < 3; ++c) out[c * kChunk + a - c0] = y[c];
       }
-      finish(a, a + 1, out, 1);
+      finish(c0, c1, out, kChunk);
     }
   });
 }
@@ -623,11 +672,12 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, bool smoo
         for (int c = 0; c < 3; ++c) sum[c] += value(i, c);
       }
       for (int c = 0; c < 3; ++c) coarse.b[static_cast<size_t>(c * n + a)] = sum[c];
-      if (smooth) {  // the coarse cycle's first sweep, from zero: x = w D^-1 b
-        double dz[3];
-        multiply(coarse.inverse[static_cast<size_t>(a)], sum, dz);
-        for (int c = 0; c < 3; ++c) coarse.x[static_cast<size_t>(c * n + a)] = kSmoothing * dz[c];
-      }
+    }
+    if (smooth) {  // the coarse cycle's first sweep, from zero: x = w D^-1 b
+      const double* B = coarse.b.data();
+      double* X = coarse.x.data();
+      smoothSlots<true>(e - b, coarse.inverse.data() + b, n, kSmoothing, B + b, B + n + b, B + 2 * n + b, nullptr,
+                        nullptr, nullptr, X + b, X + n + b, X + 2 * n + b);
     }
   });
 }
@@ -672,15 +722,16 @@ void AggregationMultigrid<S>::cycle(std::size_t k, const Executor& exec) {
   // Prolongation (with the W-cycle's kept solution added back): x += w_c P x_coarse.
   const Index cn = coarse.n;
   exec.parallelFor(n, grain, [&](Index b, Index e) {
-    for (Index i = b; i < e; ++i) {
-      const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
-      if (a < 0) continue;
-      for (int c = 0; c < 3; ++c) {
-        const auto at = static_cast<size_t>(c * cn + a);
-        const double correction = again ? coarse.x[at] + coarse.saved[at] : coarse.x[at];
-        level.x[static_cast<size_t>(c * n + i)] += kOverCorrection * correction;
-      }
-    }
+    const double* y = coarse.x.data();
+    const double* kept = coarse.saved.data();
+    double* x = level.x.data();
+    const Index* aggregate = coarse.aggregateOf.data() + b;
+    if (again)
+      prolongate<true>(e - b, aggregate, kOverCorrection, y, y + cn, y + 2 * cn, kept, kept + cn, kept + 2 * cn, x + b,
+                       x + n + b, x + 2 * n + b);
+    else
+      prolongate<false>(e - b, aggregate, kOverCorrection, y, y + cn, y + 2 * cn, kept, kept + cn, kept + 2 * cn, x + b,
+                        x + n + b, x + 2 * n + b);
   });
   for (int s = 0; s < kCoarseSweeps; ++s) sweep();
 }
@@ -709,13 +760,9 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
     cycle(0, exec);
     const Index cn = coarse.n;
     exec.parallelFor(n_, block, [&](Index b, Index e) {
-      for (Index i = b; i < e; ++i) {
-        const Index a = coarse.aggregateOf[static_cast<size_t>(i)];
-        if (a < 0) continue;
-        for (int c = 0; c < 3; ++c)
-          x_(i, c) = static_cast<S>(static_cast<double>(x_(i, c)) +
-                                    kOverCorrection * coarse.x[static_cast<size_t>(c * cn + a)]);
-      }
+      const double* y = coarse.x.data();
+      prolongate<false>(e - b, coarse.aggregateOf.data() + b, kOverCorrection, y, y + cn, y + 2 * cn, y, y, y,
+                        col(x_, 0) + b, col(x_, 1) + b, col(x_, 2) + b);
     });
   }
   // Post-smoothing: z = x + w D^-1 (r - A x), and r . z per block (per axis, vectorised, as

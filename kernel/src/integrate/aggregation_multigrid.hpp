@@ -127,8 +127,9 @@ class AggregationMultigrid {
     std::vector<Index> stencilSlot;     // per edge: direction * n + u
     std::vector<double> stencilBlocks;  // (4 directions x 6 entries x n) edge blocks, 0 where none
     std::vector<double> groundBlocks;   // (6 entries x n) ground blocks, for the stencil product
-    std::vector<SymmetricBlock> ground, edge, diagonal, inverse;
-    std::vector<double> g;  // (3 edges) B_e (x_u - x_v), the general product's
+    std::vector<SymmetricBlock> ground, edge, diagonal;
+    std::vector<double> inverse;  // (6 entries x n) the smoother's inverse blocks, xx yy zz xy xz yz arrays
+    std::vector<double> g;        // (3 edges) B_e (x_u - x_v), the general product's
     // (3 n each, axis-major: c n + a) right-hand side, solution, residual, the W-cycle's kept
     // solution, and the next solution of a fused sweep (swapped with x).
     std::vector<double> b, x, t, saved, next;
