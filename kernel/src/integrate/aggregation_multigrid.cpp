@@ -103,10 +103,11 @@ void storeBlock(double* to, Index n, Index i, const SymmetricBlock& m) {
   to[5 * n + i] = m.yz;
 }
 
-// The fine level's per-particle passes of a cycle, as out-of-line loops over restrict
-// pointers (offset to the first particle) so that they vectorise; the same arithmetic, in
-// the same order, as one particle at a time. `inv` holds the smoother's block inverses as
-// six arrays of stride `stride` (xx yy zz xy xz yz; zero on pinned particles).
+// A cycle's per-node passes (sweeps and prolongations, on the fine and the coarse levels),
+// as out-of-line loops over restrict pointers (offset to the first node) so that they
+// vectorise; the same arithmetic, in the same order, as one node at a time. `inv` holds a
+// level's smoother block inverses as six arrays of stride `stride` (xx yy zz xy xz yz; zero
+// on pinned particles and empty slots).
 
 // (d0, d1, d2) = w D_i^-1 (t0, t1, t2).
 inline void smoothingStep(const double* __restrict inv, Index stride, Index i, double w, double t0, double t1,
