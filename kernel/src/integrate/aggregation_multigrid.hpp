@@ -76,6 +76,7 @@ class AggregationMultigrid {
 
   /// z = one cycle applied to r (r zero on pinned particles; z is zero there too), and
   /// partials[k] = r . z over block k of `block` particles (block = ForceField::kSinkBlock).
+  /// r and z must be distinct buffers (the passes read r while they write z).
   void apply(SpringJacobian<S>& jacobian, const Vec3Array<S>& r, Vec3Array<S>& z, std::vector<double>& partials,
              Index block, const Executor& exec);
 
