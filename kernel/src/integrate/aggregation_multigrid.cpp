@@ -119,21 +119,6 @@ inline void smoothingStep(const double* __restrict inv, Index stride, Index i, d
   d2 = (xz * t0 + yz * t1 + zz * t2) * w;
 }
 
-// x = w D^-1 r.
-template <class S>
-[[gnu::noinline]] void smoothFromZero(Index count, const double* __restrict inv, Index stride, double w,
-                                      const S* __restrict r0, const S* __restrict r1, const S* __restrict r2,
-                                      S* __restrict x0, S* __restrict x1, S* __restrict x2) {
-  for (Index i = 0; i < count; ++i) {
-    double d0, d1, d2;
-    smoothingStep(inv, stride, i, w, static_cast<double>(r0[i]), static_cast<double>(r1[i]), static_cast<double>(r2[i]),
-                  d0, d1, d2);
-    x0[i] = static_cast<S>(d0);
-    x1[i] = static_cast<S>(d1);
-    x2[i] = static_cast<S>(d2);
-  }
-}
-
 // t = r - y on free particles, 0 on pinned ones (one axis).
 template <class S>
 [[gnu::noinline]] void freeDifference(Index count, const char* __restrict free, const S* __restrict r,
@@ -159,24 +144,25 @@ template <class S>
   }
 }
 
-// A coarse level's sweep: z = x + w D^-1 t, or w D^-1 t (kFromZero; x unused).
-template <bool kFromZero>
+// A sweep: z = x + w D^-1 t, or w D^-1 t (kFromZero; x unused), t read as double and z
+// rounded to Out (the fine level's first sweep reads r and writes x in the model's precision).
+template <bool kFromZero, class In, class Out>
 [[gnu::noinline]] void smoothSlots(Index count, const double* __restrict inv, Index stride, double w,
-                                   const double* __restrict t0, const double* __restrict t1,
-                                   const double* __restrict t2, const double* __restrict x0,
-                                   const double* __restrict x1, const double* __restrict x2, double* __restrict z0,
-                                   double* __restrict z1, double* __restrict z2) {
+                                   const In* __restrict t0, const In* __restrict t1, const In* __restrict t2,
+                                   const Out* __restrict x0, const Out* __restrict x1, const Out* __restrict x2,
+                                   Out* __restrict z0, Out* __restrict z1, Out* __restrict z2) {
   for (Index i = 0; i < count; ++i) {
     double d0, d1, d2;
-    smoothingStep(inv, stride, i, w, t0[i], t1[i], t2[i], d0, d1, d2);
+    smoothingStep(inv, stride, i, w, static_cast<double>(t0[i]), static_cast<double>(t1[i]), static_cast<double>(t2[i]),
+                  d0, d1, d2);
     if constexpr (kFromZero) {
-      z0[i] = d0;
-      z1[i] = d1;
-      z2[i] = d2;
+      z0[i] = static_cast<Out>(d0);
+      z1[i] = static_cast<Out>(d1);
+      z2[i] = static_cast<Out>(d2);
     } else {
-      z0[i] = x0[i] + d0;
-      z1[i] = x1[i] + d1;
-      z2[i] = x2[i] + d2;
+      z0[i] = static_cast<Out>(static_cast<double>(x0[i]) + d0);
+      z1[i] = static_cast<Out>(static_cast<double>(x1[i]) + d1);
+      z2[i] = static_cast<Out>(static_cast<double>(x2[i]) + d2);
     }
   }
 }
@@ -525,11 +511,11 @@ void AggregationMultigrid<S>::residual(Level& level, const std::vector<double>& 
     const double* inv = level.inverse.data() + from;
     const Index m = to - from;
     if (fromZero)
-      smoothSlots<true>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, nullptr, nullptr, nullptr,
-                        Z + from, Z + n + from, Z + 2 * n + from);
+      smoothSlots<true, double, double>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, nullptr,
+                                        nullptr, nullptr, Z + from, Z + n + from, Z + 2 * n + from);
     else
-      smoothSlots<false>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, X + from, X + n + from,
-                         X + 2 * n + from, Z + from, Z + n + from, Z + 2 * n + from);
+      smoothSlots<false, double, double>(m, inv, n, kSmoothing, T + from, T + n + from, T + 2 * n + from, X + from,
+                                         X + n + from, X + 2 * n + from, Z + from, Z + n + from, Z + 2 * n + from);
   };
   if (level.stencil) {
     // Slots outside [first, last) are the ring's first and last rows (and one slot more):
@@ -677,8 +663,8 @@ void AggregationMultigrid<S>::restrictTo(Level& coarse, Value&& value, bool smoo
     if (smooth) {  // the coarse cycle's first sweep, from zero: x = w D^-1 b
       const double* B = coarse.b.data();
       double* X = coarse.x.data();
-      smoothSlots<true>(e - b, coarse.inverse.data() + b, n, kSmoothing, B + b, B + n + b, B + 2 * n + b, nullptr,
-                        nullptr, nullptr, X + b, X + n + b, X + 2 * n + b);
+      smoothSlots<true, double, double>(e - b, coarse.inverse.data() + b, n, kSmoothing, B + b, B + n + b,
+                                        B + 2 * n + b, nullptr, nullptr, nullptr, X + b, X + n + b, X + 2 * n + b);
     }
   });
 }
@@ -745,8 +731,8 @@ void AggregationMultigrid<S>::apply(SpringJacobian<S>& jacobian, const Vec3Array
   auto col = [](auto& m, int c) { return m.data() + c * m.rows(); };
   // Pre-smoothing from zero: x = w D^-1 r.
   exec.parallelFor(n_, block, [&](Index b, Index e) {
-    smoothFromZero<S>(e - b, inv + b, n_, kSmoothing, col(r, 0) + b, col(r, 1) + b, col(r, 2) + b, col(x_, 0) + b,
-                      col(x_, 1) + b, col(x_, 2) + b);
+    smoothSlots<true, S, S>(e - b, inv + b, n_, kSmoothing, col(r, 0) + b, col(r, 1) + b, col(r, 2) + b, nullptr,
+                            nullptr, nullptr, col(x_, 0) + b, col(x_, 1) + b, col(x_, 2) + b);
   });
   if (!levels_.empty()) {
     // t = r - A x (filtered), restricted to the first coarse level.
