@@ -367,6 +367,13 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   EXPECT_EQ(unwritable.exitCode, 2);
   EXPECT_NE(unwritable.out.find("checkpoint '/nonexistent-dir/run.wckpt': cannot write"), std::string::npos)
       << unwritable.out;
+  // A checkpoint taken at another time step is refused, naming both (the run would count
+  // its steps for one and take them at the other).
+  const CliRun otherStep = weft(scene + " --dt 0.0123 --resume " + checkpoint, true);
+  EXPECT_EQ(otherStep.exitCode, 2) << otherStep.out;
+  EXPECT_NE(otherStep.out.find("--resume: the checkpoint '" + checkpoint + "' was written at dt = "), std::string::npos)
+      << otherStep.out;
+  EXPECT_NE(otherStep.out.find("this run asks for dt = 0.0123 s"), std::string::npos) << otherStep.out;
   // A checkpoint of another scene is refused, naming the file.
   const CliRun other = weft("run flag --size 24 --steps 10 --resume " + checkpoint, true);
   EXPECT_EQ(other.exitCode, 2);
@@ -563,6 +570,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"flag --integrator rk45 --atol 0", "--atol", "0"},
         BadOption{"flag --integrator implicit --cg-tolerance 1.5", "--cg-tolerance", "1.5"},
         BadOption{"flag --integrator implicit --cg-max-iterations 0", "--cg-max-iterations", "0"},
+        BadOption{"flag --integrator implicit --cg-max-iterations 2147483648", "--cg-max-iterations", "2147483648"},
+        BadOption{"flag --precision float --dt 1e39", "dt", "1e+39"},
         BadOption{"flag --integrator projective --pd-iterations 0", "--pd-iterations", "0"},
         BadOption{"flag --integrator implicit --cg-preconditioner ilu", "--cg-preconditioner", "ilu"},
         BadOption{"flag --out weft_bad_out --format vtk", "--format", "vtk"},

@@ -261,7 +261,13 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   expectInvalid(o, "rigid.bodies[1].restitution must be in [0, 1], got 2");
   o = stackScene(2);
   o.velocityIterations = 0;
-  expectInvalid(o, "rigid.velocityIterations must be >= 1, got 0");
+  expectInvalid(o, "rigid.velocityIterations must be in [1, 1000], got 0");
+  o = stackScene(2);
+  o.positionIterations = 1 << 30;  // (each step would never finish)
+  expectInvalid(o, "rigid.positionIterations must be in [0, 1000], got 1073741824");
+  o = stackScene(2);
+  o.maxPairs = kMaxRigidPairs + 1;  // (the pair buffers are reserved up front)
+  expectInvalid(o, "rigid.maxPairs must be in [0, 2^28] (0 = automatic), got 268435457");
   o = stackScene(2);
   o.rollbackPenetration = 0;
   expectInvalid(o, "rigid.rollbackPenetration must be finite and > 0 (m), got 0");
@@ -277,6 +283,72 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   } catch (const std::invalid_argument& e) {
     EXPECT_THAT(e.what(), HasSubstr("rigid.bodies[1].shapes[0]"));
   }
+}
+
+// What the world's own functions take from a caller: refused with the field and the value,
+// the world left as it was.
+TEST(RigidWorldInput, BadArgumentsAreRefusedAndChangeNothing) {
+  Executor exec(1);
+  RigidWorld world(stackScene(2), kGravity);
+  ASSERT_TRUE(runSteps(world, exec, rigidSceneTimeStep(), 5).ok());
+  const RigidState before = world.state();
+  const auto same = [&] {
+    for (Index b = 0; b < world.model().bodyCount(); ++b) {
+      EXPECT_EQ(world.state().x[b], before.x[b]) << b;
+      EXPECT_EQ(world.state().v[b], before.v[b]) << b;
+      EXPECT_EQ(world.state().w[b], before.w[b]) << b;
+      EXPECT_EQ(world.state().q[b].coeffs(), before.q[b].coeffs()) << b;
+    }
+    EXPECT_EQ(world.state().time, before.time);
+  };
+  const auto message = [](auto&& f) -> std::string {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  const double nan = std::nan("");
+  const Index n = world.model().bodyCount();
+  // An impulse on a body that is not there, or that is not a number.
+  EXPECT_EQ(message([&] { world.applyImpulse(n, Vec3(1, 0, 0), Vec3::Zero()); }),
+            "RigidWorld::applyImpulse: body " + std::to_string(n) + " is outside [0, " + std::to_string(n) + ")");
+  EXPECT_EQ(message([&] { world.applyImpulse(-1, Vec3(1, 0, 0), Vec3::Zero()); }),
+            "RigidWorld::applyImpulse: body -1 is outside [0, " + std::to_string(n) + ")");
+  EXPECT_EQ(message([&] { world.applyImpulse(1, Vec3(nan, 0, 0), Vec3::Zero()); }),
+            "RigidWorld::applyImpulse: impulse must be finite (N s), got (nan, 0, 0)");
+  EXPECT_EQ(message([&] { world.applyImpulse(1, Vec3(1, 0, 0), Vec3(0, HUGE_VAL, 0)); }),
+            "RigidWorld::applyImpulse: point must be finite (m), got (0, inf, 0)");
+  same();
+  EXPECT_THAT(message([&] { (void)world.bodyOrigin(n); }), HasSubstr("bodyOrigin: body"));
+  EXPECT_THAT(message([&] { (void)world.angularMomentum(-1); }), HasSubstr("angularMomentum: body -1"));
+  EXPECT_THAT(message([&] { (void)world.piecePose(world.model().pieceCount(), world.state()); }),
+              HasSubstr("piecePose: piece"));
+  // A step that is not a positive length, in both times of impact (the rollback loop would
+  // otherwise take no chunk and report success with the clock at NaN).
+  for (const RigidTimeOfImpact mode : {RigidTimeOfImpact::Speculative, RigidTimeOfImpact::Rollback}) {
+    RigidOptions o = stackScene(2);
+    o.timeOfImpact = mode;
+    RigidWorld w(o, kGravity);
+    for (const double h : {nan, 0.0, -1e-3, HUGE_VAL}) {
+      const double t = w.state().time;
+      EXPECT_THAT(message([&] { (void)w.step(h, exec); }), HasSubstr("RigidWorld::step: h must be finite and > 0 (s)"));
+      EXPECT_EQ(w.state().time, t);
+    }
+    EXPECT_TRUE(w.step(rigidSceneTimeStep(), exec).ok());
+  }
+  // A state with a zero orientation (it would normalise to no rotation at all) or a clock
+  // that is not a number.
+  RigidState bad = before;
+  bad.q[1] = Eigen::Quaterniond(0, 0, 0, 0);
+  EXPECT_EQ(message([&] { world.setState(bad); }),
+            "RigidWorld::setState: state.q[1] must be a finite non-zero quaternion (norm > 1e-12), got norm 0");
+  bad = before;
+  bad.time = nan;
+  EXPECT_EQ(message([&] { world.setState(bad); }), "RigidWorld::setState: state.time must be finite (s), got nan");
+  same();
+  EXPECT_TRUE(world.step(rigidSceneTimeStep(), exec).ok());
 }
 
 TEST(RigidContact, FullPairBufferIsReportedAndRestoresTheState) {

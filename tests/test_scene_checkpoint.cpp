@@ -5,6 +5,7 @@
 // refused with a message saying which, and leaves the Simulation as it was.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -207,6 +208,89 @@ TEST(Resume, ForeignOrDamagedCheckpointsAreRefusedAndChangeNothing) {
   target.restore(bytes, "c.wckpt");
   EXPECT_EQ(stateHash(target.state()), stateHash(saved.state()));
   EXPECT_EQ(target.stepCount(), 3);
+}
+
+/// Where the section `tag` starts in a checkpoint (its first byte after the tag).
+size_t sectionBody(const std::string& bytes, const char* tag) {
+  const size_t at = bytes.find(tag);
+  EXPECT_NE(at, std::string::npos) << tag;
+  EXPECT_EQ(bytes.find(tag, at + 1), std::string::npos) << tag << " twice: the test would edit the wrong place";
+  return at == std::string::npos ? 0 : at + 4;
+}
+
+template <class T>
+T readAt(const std::string& bytes, size_t at) {
+  T v{};
+  std::memcpy(&v, bytes.data() + at, sizeof v);
+  return v;
+}
+
+/// What restoring `bytes` into `target` says; the target must come out unchanged.
+template <class S>
+std::string refusedInto(Simulation<S>& target, const std::string& bytes) {
+  const std::uint64_t before = fullHash(target);
+  const std::int64_t steps = target.stepCount();
+  const std::string m = refusal([&] { target.restore(bytes, "c.wckpt"); });
+  EXPECT_EQ(fullHash(target), before) << "a refused checkpoint changed the simulation: " << m;
+  EXPECT_EQ(target.stepCount(), steps);
+  return m;
+}
+
+// A file edited so that its checksum holds but a value in it is not a number, or a list
+// does not match the one it goes with: refused when loaded, not steps later.
+TEST(Resume, ACheckpointWithANonFiniteCarryOrMismatchedListsIsRefused) {
+  const double nan = std::nan("");
+  {  // implicit Euler's warm start (the INTG section: its flag, then the n x 3 array)
+    SceneSpec spec = builtinSceneSpec("flag", 8);
+    spec.simulation.integrator = IntegratorKind::ImplicitEuler;
+    Simulation<double> saved = build<double>(spec, 1);
+    ASSERT_TRUE(saved.run(3).ok());
+    std::string bytes = saved.checkpoint();
+    const size_t at = sectionBody(bytes, "INTG") + 1 + 16 + 8 * 5;  // entry (5, 0)
+    std::memcpy(bytes.data() + at, &nan, 8);
+    Simulation<double> target = build<double>(spec, 1);
+    EXPECT_EQ(refusedInto(target, resealed(bytes)),
+              "checkpoint 'c.wckpt': implicit Euler's warm start: entry (5, 0) is not finite");
+  }
+  {  // a kinematic pin's origin (the last vector of the SIMU section, just before INTG)
+    const SceneSpec spec = builtinSceneSpec("twist", 12);
+    Simulation<double> saved = build<double>(spec, 1);
+    ASSERT_FALSE(saved.options().kinematicPins.empty());
+    ASSERT_TRUE(saved.run(2).ok());
+    std::string bytes = saved.checkpoint();
+    const size_t end = sectionBody(bytes, "INTG") - 4;
+    std::memcpy(bytes.data() + end - 8, &nan, 8);  // the last origin's z
+    Simulation<double> target = build<double>(spec, 1);
+    const std::string m = refusedInto(target, resealed(bytes));
+    EXPECT_NE(m.find("kinematic pin origin"), std::string::npos) << m;
+    EXPECT_NE(m.find("is not finite"), std::string::npos) << m;
+  }
+  {  // rigid pairs without their witness caches (the next step would read past the list)
+    const SceneSpec spec = builtinSceneSpec("stack", 4);
+    Simulation<double> saved = build<double>(spec, 1);
+    ASSERT_TRUE(saved.run(30).ok());
+    const std::string bytes = saved.checkpoint();
+    const size_t n = static_cast<size_t>(saved.rigidWorld()->model().bodyCount());
+    // x, q, v, w, time, the kinematic origins and orientations, then the pairs (8 bytes each).
+    size_t at = sectionBody(bytes, "RIGD");
+    for (const size_t entry : {24, 32, 24, 24}) at += 8 + entry * n;
+    at += 8;
+    for (const size_t entry : {24, 32}) at += 8 + entry * n;
+    const auto pairs = readAt<std::uint64_t>(bytes, at);
+    ASSERT_GT(pairs, 0u) << "the boxes should touch by now";
+    at += 8 + 8 * pairs;
+    ASSERT_EQ(readAt<std::uint64_t>(bytes, at), pairs) << "the layout this test assumes";
+    const size_t cacheBytes = sizeof(PairCache) * pairs;
+    std::string edited = bytes.substr(0, at);
+    const std::uint64_t none = 0;
+    edited.append(reinterpret_cast<const char*>(&none), 8);
+    edited += bytes.substr(at + 8 + cacheBytes);
+    Simulation<double> target = build<double>(spec, 1);
+    EXPECT_EQ(refusedInto(target, resealed(edited)),
+              "checkpoint 'c.wckpt': 0 witness caches for " + std::to_string(pairs) + " pairs");
+    target.restore(bytes, "c.wckpt");  // the file as written still loads, and steps
+    EXPECT_TRUE(target.step().ok());
+  }
 }
 
 TEST(Resume, ACheckpointOfOtherSelfCollisionSettingsIsRefused) {

@@ -1,6 +1,7 @@
 // tests/test_scene_simulation.cpp — Simulation: bitwise determinism across thread counts and
 // arenas, the stability check and failure handling, option validation, agreement with
 // the textbook RK4 baseline.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <oneapi/tbb/task_arena.h>
 
@@ -291,12 +292,26 @@ TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
   ASSERT_TRUE(sim.run(3).ok());
   const std::uint64_t hash = stateHash(sim.state());
 
+  const auto refusal = [&](const State<S>& state) -> std::string {
+    try {
+      sim.setState(state);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
   State<S> bad = sim.state();
   bad.x(5, 1) = std::numeric_limits<S>::quiet_NaN();
-  EXPECT_THROW(sim.setState(bad), std::invalid_argument);
+  EXPECT_EQ(refusal(bad), "Simulation::setState: state.x(5, 1) must be finite, got nan");
   bad = sim.state();
   bad.v(7, 2) = std::numeric_limits<S>::infinity();
-  EXPECT_THROW(sim.setState(bad), std::invalid_argument);
+  EXPECT_EQ(refusal(bad), "Simulation::setState: state.v(7, 2) must be finite, got inf");
+  // The clock drives kinematic pins and the wind: a clock that is not a number is refused too.
+  for (const double time : {std::nan(""), std::numeric_limits<double>::infinity(), -HUGE_VAL}) {
+    bad = sim.state();
+    bad.time = time;
+    EXPECT_THAT(refusal(bad), ::testing::StartsWith("Simulation::setState: state.time must be finite (s), got "));
+  }
   State<S> small;
   small.x = Vec3Array<S>::Zero(3, 3);
   small.v = Vec3Array<S>::Zero(3, 3);
@@ -431,12 +446,22 @@ TYPED_TEST(SimulationTest, BadOptionsThrowNamingTheField) {
   expectBadOptions<S>(o, "dt", "nan");
   o.dt = std::numeric_limits<double>::infinity();
   expectBadOptions<S>(o, "dt", "inf");
+  o.dt = -1e-9;  // (written as the value the user gave, not "-0.000000")
+  expectBadOptions<S>(o, "dt", "got -1e-09");
+  // A step the model's precision cannot hold: in float, 1e39 would step by infinity and
+  // 1e-46 by zero.
+  if constexpr (sizeof(S) == sizeof(float)) {
+    o.dt = 1e39;
+    expectBadOptions<S>(o, "SimulationOptions.dt must be within the range of float precision", "got 1e+39");
+    o.dt = 1e-46;
+    expectBadOptions<S>(o, "SimulationOptions.dt must be within the range of float precision", "got 1e-46");
+  }
   o.dt = 1e-3;
   o.threads = -1;
   expectBadOptions<S>(o, "threads", "-1");
   o.threads = 1;
   o.gravity = {0, std::numeric_limits<double>::quiet_NaN(), 0};
-  expectBadOptions<S>(o, "gravity", "");
+  expectBadOptions<S>(o, "gravity", "got (0, nan, 0)");
   o.gravity = {0, -9.81, 0};
   o.stability.maxStretch = std::numeric_limits<double>::quiet_NaN();
   expectBadOptions<S>(o, "maxStretch", "");
@@ -445,12 +470,13 @@ TYPED_TEST(SimulationTest, BadOptionsThrowNamingTheField) {
 TYPED_TEST(SimulationTest, BadTimeStepIsRejectedAndKeepsTheOldOne) {
   using S = TypeParam;
   Simulation<S> sim(makeFlag<S>(4), flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4));
-  for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN()}) {
+  for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(),
+                          sizeof(S) == 4 ? 1e39 : std::numeric_limits<double>::infinity()}) {
     try {
       sim.setTimeStep(dt);
       ADD_FAILURE() << "accepted dt " << dt;
     } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("dt"), std::string::npos) << e.what();
+      EXPECT_THAT(e.what(), ::testing::StartsWith("Simulation::setTimeStep: dt must be "));
     }
   }
   EXPECT_EQ(sim.timeStep(), 1e-4);

@@ -252,8 +252,8 @@ int main(int argc, char** argv) {
   cmd->add_flag("--fixed-step", run.fixedStep, "rk45: one fixed Dormand-Prince step per step, no error control");
   cmd->add_option("--cg-tolerance", run.linearTolerance, "implicit: CG stops at |r| <= this x |b| (in [0, 1))")
       ->check(finiteNonNegative & CLI::Range(0.0, 0.999999));
-  cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (>= 1)")
-      ->check(CLI::PositiveNumber);
+  cmd->add_option("--cg-max-iterations", run.maxLinearIterations, "implicit: CG iteration cap (1 to 2^30)")
+      ->check(CLI::Range(std::int64_t(1), std::int64_t(weft::kMaxIterationCap)));
   std::vector<std::string> preconditioners;
   std::string preconditionerList;
   for (const weft::Preconditioner p : weft::kAllPreconditioners) {

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -26,6 +27,13 @@
 namespace weftcli {
 
 namespace {
+
+/// The shortest text that reads back as v ("0.0166667" would not).
+std::string shortest(double v) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return std::string(buffer, result.ptr);
+}
 
 /// Memory the machine has available for a new allocation, bytes (MemAvailable of
 /// /proc/meminfo; infinity if unreadable).
@@ -339,7 +347,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           std::string("--resume cannot append to ") +
           (output.format == "cache" ? "a frame cache (--format cache)" : "a glTF file (--format gltf)") +
           ": resume with obj or ply frames, or without --out");
+    const double askedDt = sim.timeStep();
     sim.load(*o.resume);
+    // The checkpoint carries its time step; a run that asks for another would count its
+    // steps for one and take them at the other.
+    if (sim.timeStep() != askedDt)
+      throw std::runtime_error("--resume: the checkpoint '" + *o.resume +
+                               "' was written at dt = " + shortest(sim.timeStep()) +
+                               " s, this run asks for dt = " + shortest(askedDt) + " s (the scene's dt or --dt)");
     if (sim.stepCount() > steps)
       throw std::runtime_error("--resume: the checkpoint '" + *o.resume + "' is at step " +
                                std::to_string(sim.stepCount()) + ", beyond the " + std::to_string(steps) +

@@ -147,8 +147,7 @@ ForceField<S>::ForceField(const Model<S>& model, ForceStrategy strategy, const V
       drag_(static_cast<S>(effects.drag)) {
   validateEffects(effects);
   if (!(effects.drag <= std::numeric_limits<S>::max()))
-    throw std::invalid_argument("effects.drag must be within the range of the model's precision, got " +
-                                std::to_string(effects.drag));
+    detail::rejectField("effects.drag", effects.drag, "within the range of the model's precision");
   if (effects.wind.enabled) wind_ = std::make_unique<detail::WindForce<S>>(model, effects.wind);
   if (effects.repulsion.enabled()) repulsion_ = std::make_unique<detail::Repulsion<S>>(model, effects.repulsion);
   const Index n = model.particleCount();

@@ -106,10 +106,12 @@ void validateIntegratorOptions(const IntegratorOptions& o) {
     bad("absoluteTolerance", str(o.absoluteTolerance), "must be finite and > 0");
   if (!(std::isfinite(o.minSubstep) && o.minSubstep > 0))
     bad("minSubstep", str(o.minSubstep), "must be finite and > 0 (s)");
-  if (o.maxSubsteps < 1) bad("maxSubsteps", std::to_string(o.maxSubsteps), "must be >= 1");
+  if (o.maxSubsteps < 1 || o.maxSubsteps > kMaxIterationCap)
+    bad("maxSubsteps", std::to_string(o.maxSubsteps), "must be in [1, 2^30]");
   if (!(std::isfinite(o.linearTolerance) && o.linearTolerance >= 0 && o.linearTolerance < 1))
     bad("linearTolerance", str(o.linearTolerance), "must be in [0, 1)");
-  if (o.maxLinearIterations < 1) bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be >= 1");
+  if (o.maxLinearIterations < 1 || o.maxLinearIterations > kMaxIterationCap)
+    bad("maxLinearIterations", std::to_string(o.maxLinearIterations), "must be in [1, 2^30]");
   if (std::find(std::begin(kAllPreconditioners), std::end(kAllPreconditioners), o.preconditioner) ==
       std::end(kAllPreconditioners))
     bad("preconditioner", std::to_string(static_cast<int>(o.preconditioner)), "must be one of kAllPreconditioners");

@@ -94,6 +94,11 @@ void requireScalarRange(const SimulationOptions& o,
       fail(field, std::string("must be within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
                       " precision (|value| <= " + fmt(big) + "), got " + fmt(value));
   };
+  // (dt > 0 is the kernel's rule; here, that the model's precision holds it as a normal number.)
+  const double tiny = static_cast<double>(std::numeric_limits<S>::min());
+  if (o.dt > 0 && !(o.dt >= tiny && o.dt <= big))
+    fail("dt", std::string("must be within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
+                   " precision ([" + fmt(tiny) + ", " + fmt(big) + "] s), got " + fmt(o.dt));
   check("gravity[0]", o.gravity.x);
   check("gravity[1]", o.gravity.y);
   check("gravity[2]", o.gravity.z);
@@ -211,10 +216,10 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     io.relativeTolerance = r.anyNumber(j, f, "rtol", io.relativeTolerance);
     io.absoluteTolerance = r.anyNumber(j, f, "atol", io.absoluteTolerance);
     io.minSubstep = r.anyNumber(j, f, "min_substep", io.minSubstep);
-    io.maxSubsteps = static_cast<Index>(r.integer(j, f, "max_substeps", io.maxSubsteps, 1, 1 << 30));
+    io.maxSubsteps = static_cast<Index>(r.integer(j, f, "max_substeps", io.maxSubsteps, 1, kMaxIterationCap));
     io.linearTolerance = r.anyNumber(j, f, "cg_tolerance", io.linearTolerance);
     io.maxLinearIterations =
-        static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, 1 << 30));
+        static_cast<Index>(r.integer(j, f, "cg_max_iterations", io.maxLinearIterations, 1, kMaxIterationCap));
     // (The names are the kernel's, as for the integrator.)
     const std::string preconditioner = r.string(j, f, "cg_preconditioner", preconditionerName(io.preconditioner));
     r.kernelRules(j, f, "", [&] { io.preconditioner = parsePreconditioner(preconditioner); },

@@ -22,8 +22,7 @@ Vec3d normalised(const Vec3d& v, const char* field) {
 }
 
 void requirePositive(const char* field, double value) {
-  if (!(std::isfinite(value) && value > 0))
-    throw std::invalid_argument(std::string(field) + " must be finite and > 0, got " + std::to_string(value));
+  if (!(std::isfinite(value) && value > 0)) detail::rejectField(field, value, "finite and > 0");
 }
 
 /// What ModelBuilder<S>::build() will require of the values an object adds, checked before
@@ -110,10 +109,8 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
   const Vec3d w = normalised(spec.columnAxis, "ClothGridSpec.columnAxis");
   const double cx = u.y * w.z - u.z * w.y, cy = u.z * w.x - u.x * w.z, cz = u.x * w.y - u.y * w.x;
   if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6))
-    throw std::invalid_argument("ClothGridSpec.rowAxis and ClothGridSpec.columnAxis must not be parallel, got (" +
-                                std::to_string(spec.rowAxis.x) + ", " + std::to_string(spec.rowAxis.y) + ", " +
-                                std::to_string(spec.rowAxis.z) + ") and (" + std::to_string(spec.columnAxis.x) + ", " +
-                                std::to_string(spec.columnAxis.y) + ", " + std::to_string(spec.columnAxis.z) + ")");
+    throw std::invalid_argument("ClothGridSpec.rowAxis and ClothGridSpec.columnAxis must not be parallel, got " +
+                                detail::number3(spec.rowAxis) + " and " + detail::number3(spec.columnAxis));
   const Index W = spec.width, H = spec.height;
   // Every particle, spring and triangle index must fit an Index (about 3.5 springs a particle).
   if (static_cast<long long>(W) * H > std::numeric_limits<Index>::max() / 8)

@@ -73,8 +73,10 @@ const char* rigidTimeOfImpactName(RigidTimeOfImpact mode) {
 void validateRigidOptions(const RigidOptions& o) {
   const std::string r = "rigid.";
   require(o.substeps >= 1 && o.substeps <= 1024, r + "substeps", "in [1, 1024]", std::to_string(o.substeps));
-  require(o.velocityIterations >= 1, r + "velocityIterations", ">= 1", std::to_string(o.velocityIterations));
-  require(o.positionIterations >= 0, r + "positionIterations", ">= 0", std::to_string(o.positionIterations));
+  require(o.velocityIterations >= 1 && o.velocityIterations <= 1000, r + "velocityIterations", "in [1, 1000]",
+          std::to_string(o.velocityIterations));
+  require(o.positionIterations >= 0 && o.positionIterations <= 1000, r + "positionIterations", "in [0, 1000]",
+          std::to_string(o.positionIterations));
   require(std::isfinite(o.speculativeDistance) && o.speculativeDistance >= 0, r + "speculativeDistance",
           "finite and >= 0 (m)", text(o.speculativeDistance));
   require(std::isfinite(o.linearSlop) && o.linearSlop >= 0, r + "linearSlop", "finite and >= 0 (m)",
@@ -88,7 +90,8 @@ void validateRigidOptions(const RigidOptions& o) {
           text(o.staticSpeed));
   require(std::isfinite(o.particleThickness) && o.particleThickness > 0, r + "particleThickness", "finite and > 0 (m)",
           text(o.particleThickness));
-  require(o.maxPairs >= 0, r + "maxPairs", ">= 0 (0 = automatic)", std::to_string(o.maxPairs));
+  require(o.maxPairs >= 0 && o.maxPairs <= kMaxRigidPairs, r + "maxPairs", "in [0, 2^28] (0 = automatic)",
+          std::to_string(o.maxPairs));
   require(std::isfinite(o.rollbackPenetration) && o.rollbackPenetration > 0, r + "rollbackPenetration",
           "finite and > 0 (m)", text(o.rollbackPenetration));
   require(o.maxHalvings >= 0 && o.maxHalvings <= 30, r + "maxHalvings", "in [0, 30]", std::to_string(o.maxHalvings));

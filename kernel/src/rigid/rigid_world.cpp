@@ -4,9 +4,12 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#include "core/text.hpp"
 
 namespace weft {
 
@@ -20,6 +23,20 @@ Vec3 toEigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
 Vec3d toVec3d(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
+/// Throws std::out_of_range unless 0 <= k < count ("<where>: <what> k is outside [0, count)").
+void requireIndex(Index k, Index count, const char* where, const char* what) {
+  if (k < 0 || k >= count)
+    throw std::out_of_range(std::string(where) + ": " + what + " " + std::to_string(k) + " is outside [0, " +
+                            std::to_string(count) + ")");
+}
+
+/// Whether q can be normalised to a rotation: finite and not (nearly) zero (the rule
+/// validateRigidOptions applies to a body's orientation).
+bool rotationQuaternion(const Quat& q) {
+  const double norm = q.norm();
+  return std::isfinite(norm) && norm > 1e-12;
+}
 
 /// Rotation of a kinematic path at time t (what kinematicRotate does to a direction).
 Mat3 pathRotation(const KinematicPath& path, double t) {
@@ -60,7 +77,7 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   RigidOptions check = options;
   check.bodies.clear();
   validateRigidOptions(check);
-  if (!finite(gravity)) throw std::invalid_argument("RigidWorld: gravity must be finite (m/s^2)");
+  if (!finite(gravity)) detail::rejectField("RigidWorld: gravity", detail::number3(gravity), "finite (m/s^2)");
   const std::size_t n = model_->bodyCount();
   const std::size_t pieces = model_->pieceCount();
   rotation_.resize(n);
@@ -77,6 +94,23 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   sweepOrder_.resize(pieces);
   capacityPairs_ = options_.maxPairs > 0 ? options_.maxPairs : static_cast<Index>(16 * pieces + 64);
   const std::size_t cap = static_cast<std::size_t>(capacityPairs_);
+  try {
+    reservePairs(cap);
+  } catch (const std::bad_alloc&) {
+    const double bytes = static_cast<double>(cap) * (2 * sizeof(Pair) + 2 * sizeof(PairCache) +
+                                                     sizeof(ContactManifold) + 8 * sizeof(Constraint) + sizeof(Block));
+    throw std::invalid_argument("RigidWorld: rigid.maxPairs = " + std::to_string(options_.maxPairs) +
+                                " pairs need about " + detail::number(std::round(bytes / (1 << 30))) +
+                                " GiB of contact buffers, more than this machine could allocate");
+  }
+  bodyColours_.resize(n);
+  colourStart_.reserve(kColours + 2);
+  colourCount_.reserve(kColours + 1);
+  lastPairFirstConstraint_.push_back(0);
+  setState(initial);
+}
+
+void RigidWorld::reservePairs(std::size_t cap) {
   for (auto* v : {&pairs_, &lastPairs_}) v->reserve(cap);
   for (auto* v : {&caches_, &lastCaches_}) v->reserve(cap);
   manifolds_.reserve(cap);
@@ -87,13 +121,8 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   lastConstraints_.reserve(4 * cap);
   pairFirstConstraint_.reserve(cap + 1);
   blocks_.reserve(cap);
-  bodyColours_.resize(n);
   colourOrder_.reserve(cap);
-  colourStart_.reserve(kColours + 2);
-  colourCount_.reserve(kColours + 1);
   lastPairFirstConstraint_.reserve(cap + 1);
-  lastPairFirstConstraint_.push_back(0);
-  setState(initial);
 }
 
 void RigidWorld::setState(const RigidState& s) {
@@ -104,7 +133,11 @@ void RigidWorld::setState(const RigidState& s) {
   for (std::size_t b = 0; b < n; ++b) {
     if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())))
       throw std::invalid_argument("RigidWorld::setState: body " + std::to_string(b) + " is not finite");
+    if (!rotationQuaternion(s.q[b]))
+      detail::rejectField("RigidWorld::setState: state.q[" + std::to_string(b) + "]",
+                          "norm " + detail::number(s.q[b].norm()), "a finite non-zero quaternion (norm > 1e-12)");
   }
+  if (!std::isfinite(s.time)) detail::rejectField("RigidWorld::setState: state.time", s.time, "finite (s)");
   state_ = s;
   for (auto& q : state_.q) q.normalize();
   backup_ = state_;
@@ -161,10 +194,11 @@ void RigidWorld::loadCarry(ArchiveReader& in) {
       kinematicQ0_.size() != n)
     in.fail("the file has " + std::to_string(s.x.size()) + " rigid bodies, this simulation " + std::to_string(n));
   for (std::size_t b = 0; b < n; ++b)
-    if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())) ||
+    if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && rotationQuaternion(s.q[b])) ||
         (model_->motion[b] == BodyMotion::Kinematic &&
-         !(finite(kinematicX0_[b]) && std::isfinite(kinematicQ0_[b].norm()))))
-      in.fail("rigid body " + std::to_string(b) + " is not finite");
+         !(finite(kinematicX0_[b]) && rotationQuaternion(kinematicQ0_[b]))))
+      in.fail("rigid body " + std::to_string(b) + " is not finite (or has a zero orientation)");
+  if (!std::isfinite(s.time)) in.fail("the rigid time is not finite");
   const Index pieces = model_->pieceCount();
   for (std::size_t k = 0; k < lastPairs_.size(); ++k) {
     const Pair& p = lastPairs_[k];
@@ -172,7 +206,7 @@ void RigidWorld::loadCarry(ArchiveReader& in) {
       in.fail("rigid pair " + std::to_string(k) + " (" + std::to_string(p.a) + ", " + std::to_string(p.b) +
               ") is not a sorted pair of the model's " + std::to_string(pieces) + " pieces");
   }
-  if (lastCaches_.size() != lastPairs_.size() && !lastCaches_.empty())
+  if (lastCaches_.size() != lastPairs_.size())
     in.fail(std::to_string(lastCaches_.size()) + " witness caches for " + std::to_string(lastPairs_.size()) + " pairs");
   for (const PairCache& c : lastCaches_) in.checkFlag(c, offsetof(PairCache, touching), "a witness cache");
   const std::vector<Index>& first = lastPairFirstConstraint_;
@@ -209,6 +243,7 @@ void RigidWorld::setSupports(const SupportContact* contacts, Index count) {
 }
 
 Eigen::Vector3d RigidWorld::bodyOrigin(Index b) const {
+  requireIndex(b, model_->bodyCount(), "RigidWorld::bodyOrigin", "body");
   return state_.x[b] - state_.q[b].toRotationMatrix() * model_->centreOfMass[b];
 }
 
@@ -226,11 +261,13 @@ double RigidWorld::energy() const {
 }
 
 Eigen::Vector3d RigidWorld::angularMomentum(Index b) const {
+  requireIndex(b, model_->bodyCount(), "RigidWorld::angularMomentum", "body");
   const Mat3 r = state_.q[b].toRotationMatrix();
   return r * model_->inertia[b] * r.transpose() * state_.w[b];
 }
 
 Pose RigidWorld::piecePose(Index p, const RigidState& s) const {
+  requireIndex(p, model_->pieceCount(), "RigidWorld::piecePose", "piece");
   const RigidPiece& piece = model_->pieces[p];
   const Mat3 r = s.q[piece.body].toRotationMatrix();
   Pose pose;
@@ -240,6 +277,10 @@ Pose RigidWorld::piecePose(Index p, const RigidState& s) const {
 }
 
 void RigidWorld::applyImpulse(Index b, const Eigen::Vector3d& impulse, const Eigen::Vector3d& point) {
+  requireIndex(b, model_->bodyCount(), "RigidWorld::applyImpulse", "body");
+  if (!finite(impulse))
+    detail::rejectField("RigidWorld::applyImpulse: impulse", detail::number3(impulse), "finite (N s)");
+  if (!finite(point)) detail::rejectField("RigidWorld::applyImpulse: point", detail::number3(point), "finite (m)");
   if (model_->motion[b] != BodyMotion::Dynamic) return;
   const Mat3 r = state_.q[b].toRotationMatrix();
   state_.v[b] += model_->inverseMass[b] * impulse;
@@ -269,6 +310,7 @@ void copyState(const RigidState& from, RigidState& to) {
 }  // namespace
 
 StepStatus RigidWorld::step(double h, const Executor& executor) {
+  if (!(std::isfinite(h) && h > 0)) detail::rejectField("RigidWorld::step: h", h, "finite and > 0 (s)");
   double shorter = 0;
   if (!rollback()) {
     const StepStatus s = stepChunk(h, executor, true, shorter);

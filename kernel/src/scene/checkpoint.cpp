@@ -180,7 +180,12 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
     std::vector<Vec3d> origins;
     in.vector(origins, "kinematic pin origins");
     if (origins.size() != tracks_.size()) in.fail("kinematic pin origins: " + std::to_string(origins.size()));
-    for (size_t k = 0; k < tracks_.size(); ++k) tracks_[k].reference = origins[k];
+    for (size_t k = 0; k < tracks_.size(); ++k) {
+      const Vec3d& o = origins[k];
+      if (!(std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.z)))
+        in.fail("kinematic pin origin " + std::to_string(k) + " is not finite");
+      tracks_[k].reference = o;
+    }
     if (!(std::isfinite(options_.dt) && options_.dt > 0)) in.fail("the time step is not > 0");
     if (!std::isfinite(state_.time) || !std::isfinite(clockStart_)) in.fail("the time is not finite");
     if (stepCount_ < 0) in.fail("a negative step count, " + std::to_string(stepCount_));

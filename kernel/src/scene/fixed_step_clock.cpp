@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
+
 namespace weft {
 
 template <class S>
@@ -17,8 +19,7 @@ FixedStepClock<S>::FixedStepClock(Simulation<S>& sim, Index maxStepsPerAdvance)
 template <class S>
 StepStatus FixedStepClock<S>::advance(double frameTime) {
   if (!(std::isfinite(frameTime) && frameTime >= 0))
-    throw std::invalid_argument("FixedStepClock::advance: frameTime must be finite and >= 0 (s), got " +
-                                std::to_string(frameTime));
+    detail::rejectField("FixedStepClock::advance: frameTime", frameTime, "finite and >= 0 (s)");
   if (sim_->timeStep() != dt_) {  // a new dt: what was simulated so far stays, count afresh
     baseTime_ = total_ - dropped_;
     baseSteps_ = steps_;

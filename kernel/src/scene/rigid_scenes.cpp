@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
 #include "weft/scene/builtin_scenes.hpp"
 
 namespace weft {
@@ -157,8 +158,7 @@ RigidOptions pileScene(Index bodies) {
 }
 
 RigidOptions bulletScene(double speed) {
-  if (!(std::isfinite(speed) && speed >= 0))
-    throw std::invalid_argument("bulletScene: speed must be finite and >= 0 (m/s), got " + std::to_string(speed));
+  if (!(std::isfinite(speed) && speed >= 0)) detail::rejectField("bulletScene: speed", speed, "finite and >= 0 (m/s)");
   RigidOptions o;
   o.bodies.push_back(staticBox("plate", {1.005, 0, 0}, {0.005, 1, 1}));
   RigidBodyDesc bullet = dynamicBox("bullet", {0, 0, 0}, {0.02, 0.02, 0.02}, 8000);
@@ -170,8 +170,7 @@ RigidOptions bulletScene(double speed) {
 RigidOptions slopeScene(double degrees, double mu) {
   if (!(degrees >= 0 && degrees < 90))
     throw std::invalid_argument("slopeScene: degrees must be in [0, 90), got " + std::to_string(degrees));
-  if (!(std::isfinite(mu) && mu >= 0))
-    throw std::invalid_argument("slopeScene: mu must be finite and >= 0, got " + std::to_string(mu));
+  if (!(std::isfinite(mu) && mu >= 0)) detail::rejectField("slopeScene: mu", mu, "finite and >= 0");
   const double a = degrees * 3.14159265358979323846 / 180;
   const Eigen::Quaterniond tilt(Eigen::AngleAxisd(a, Point3::UnitZ()));  // down the slope: -x
   const Point3 up = tilt * Point3::UnitY();
@@ -252,8 +251,7 @@ std::vector<Index> tableclothGrip(Index size) {
 }
 
 KinematicPath tableclothPull(double speed) {
-  if (!(std::isfinite(speed) && speed > 0))
-    throw std::invalid_argument("tableclothPull: speed must be finite and > 0 (m/s), got " + std::to_string(speed));
+  if (!(std::isfinite(speed) && speed > 0)) detail::rejectField("tableclothPull: speed", speed, "finite and > 0 (m/s)");
   KinematicPath path;
   path.velocity = {speed, 0, 0};
   path.startTime = 0;

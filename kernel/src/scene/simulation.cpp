@@ -5,11 +5,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "collide/contact_solver.hpp"
 #include "collide/self_collider.hpp"
+#include "core/text.hpp"
 #include "rigid/particle_contacts.hpp"
 
 namespace weft {
@@ -17,13 +20,12 @@ namespace weft {
 namespace {
 
 const SimulationOptions& validated(const SimulationOptions& o) {
-  if (!(std::isfinite(o.dt) && o.dt > 0))
-    throw std::invalid_argument("SimulationOptions.dt must be finite and > 0 (s), got " + std::to_string(o.dt));
+  if (!(std::isfinite(o.dt) && o.dt > 0)) detail::rejectField("SimulationOptions.dt", o.dt, "finite and > 0 (s)");
   if (!o.arena && o.threads < 0)
     throw std::invalid_argument("SimulationOptions.threads must be >= 0 (0 = all cores), got " +
                                 std::to_string(o.threads));
   if (!(std::isfinite(o.gravity.x) && std::isfinite(o.gravity.y) && std::isfinite(o.gravity.z)))
-    throw std::invalid_argument("SimulationOptions.gravity must be finite");
+    detail::rejectField("SimulationOptions.gravity", detail::number3(o.gravity), "finite (m/s^2)");
   validateEffects(o.effects, "SimulationOptions.effects");
   validateCollision(o.collision, "SimulationOptions.collision");
   validateSelfCollision(o.selfCollision, "SimulationOptions.selfCollision");
@@ -34,6 +36,19 @@ const SimulationOptions& validated(const SimulationOptions& o) {
 }
 
 double norm(const Vec3d& a) { return std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z); }
+
+/// dt as the model's precision holds it: a normal number (in float, 1e39 would step by
+/// infinity and 1e-46 by 0).
+template <class S>
+double requireStep(double dt, const char* field) {
+  const double tiny = static_cast<double>(std::numeric_limits<S>::min()),
+               big = static_cast<double>(std::numeric_limits<S>::max());
+  if (!(dt >= tiny && dt <= big))
+    detail::rejectField(field, dt,
+                        std::string("within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
+                            " precision ([" + detail::number(tiny) + ", " + detail::number(big) + "] s)");
+  return dt;
+}
 
 template <class S>
 std::shared_ptr<const Model<S>> requireModel(std::shared_ptr<const Model<S>> model) {
@@ -57,9 +72,11 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
       stability_(*model_, options_.stability),
       nextX_(model_->particleCount(), 3),
       nextV_(model_->particleCount(), 3) {
+  requireStep<S>(options_.dt, "SimulationOptions.dt");
   setState(initial);
   clockStart_ = state_.time;
   // Kinematic pins: validated against the model, tracked from the initial positions.
+  std::vector<char> tracked(options_.kinematicPins.empty() ? 0 : static_cast<size_t>(model_->particleCount()), 0);
   for (size_t set = 0; set < options_.kinematicPins.size(); ++set) {
     const KinematicPins& pins = options_.kinematicPins[set];
     validateKinematicPath(pins.path, "SimulationOptions.kinematicPins[" + std::to_string(set) + "].path.");
@@ -77,9 +94,9 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
       if (!model_->isPinned(i))
         throw std::invalid_argument(field + " = " + std::to_string(i) +
                                     " is not pinned in the model (a kinematic particle must have inverse mass 0)");
-      for (const KinematicTrack& t : tracks_)
-        if (t.particle == i)
-          throw std::invalid_argument(field + " = " + std::to_string(i) + " is already moved by another kinematic pin");
+      if (tracked[static_cast<size_t>(i)])
+        throw std::invalid_argument(field + " = " + std::to_string(i) + " is already moved by another kinematic pin");
+      tracked[static_cast<size_t>(i)] = 1;
       tracks_.push_back({i,
                          static_cast<Index>(set),
                          {static_cast<double>(state_.x(i, 0)), static_cast<double>(state_.x(i, 1)),
@@ -157,8 +174,18 @@ void Simulation<S>::setState(const State<S>& state) {
     throw std::invalid_argument("Simulation::setState: state has " + std::to_string(state.x.rows()) +
                                 " positions and " + std::to_string(state.v.rows()) + " velocities, the model has " +
                                 std::to_string(n) + " particles");
-  if (!state.x.allFinite() || !state.v.allFinite())
-    throw std::invalid_argument("Simulation::setState: state has non-finite positions or velocities");
+  for (const auto* array : {&state.x, &state.v}) {
+    if (array->allFinite()) continue;
+    for (Index i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c)
+        if (!std::isfinite((*array)(i, c)))
+          detail::rejectField(std::string("Simulation::setState: state.") + (array == &state.x ? "x(" : "v(") +
+                                  std::to_string(i) + ", " + std::to_string(c) + ")",
+                              static_cast<double>((*array)(i, c)), "finite");
+  }
+  // The clock drives kinematic pins, paths and wind: a clock that is not a finite number
+  // would put NaN into the positions at the next step.
+  detail::requireField(std::isfinite(state.time), "Simulation::setState: state.time", state.time, "finite (s)");
   state_ = state;
   status_ = StepStatus{};
   integrator_->reset();
@@ -166,8 +193,8 @@ void Simulation<S>::setState(const State<S>& state) {
 
 template <class S>
 void Simulation<S>::setTimeStep(double dt) {
-  if (!(std::isfinite(dt) && dt > 0))
-    throw std::invalid_argument("Simulation::setTimeStep: dt must be finite and > 0 (s), got " + std::to_string(dt));
+  if (!(std::isfinite(dt) && dt > 0)) detail::rejectField("Simulation::setTimeStep: dt", dt, "finite and > 0 (s)");
+  requireStep<S>(dt, "Simulation::setTimeStep: dt");
   options_.dt = dt;
   status_ = StepStatus{};
 }

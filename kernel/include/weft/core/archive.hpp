@@ -15,6 +15,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -138,7 +139,9 @@ class ArchiveReader {
     v.resize(static_cast<std::size_t>(count));
     bytes(static_cast<void*>(v.data()), v.size() * sizeof(T));
   }
-  /// A dynamic Eigen array whose shape must be `rows` x `cols` (the Simulation's own).
+  /// A dynamic Eigen array whose shape must be `rows` x `cols` (the Simulation's own); a
+  /// floating-point one must be finite (every array a checkpoint holds is a state or a
+  /// quantity derived from one, and a NaN in it would only surface steps later).
   template <class Derived>
   void array(Eigen::PlainObjectBase<Derived>& a, Index rows, Index cols, const char* what) {
     const auto r = value<std::int64_t>(), c = value<std::int64_t>();
@@ -147,6 +150,13 @@ class ArchiveReader {
            std::to_string(rows) + " x " + std::to_string(cols) + " in this simulation");
     a.resize(rows, cols);
     bytes(a.data(), static_cast<std::size_t>(a.size()) * sizeof(typename Derived::Scalar));
+    if constexpr (std::is_floating_point_v<typename Derived::Scalar>) {
+      if (!a.allFinite())
+        for (Index j = 0; j < cols; ++j)
+          for (Index i = 0; i < rows; ++i)
+            if (!std::isfinite(a(i, j)))
+              fail(std::string(what) + ": entry (" + std::to_string(i) + ", " + std::to_string(j) + ") is not finite");
+    }
   }
   std::string text(const char* what, std::size_t maxSize = 4096) {
     const std::uint64_t size = value<std::uint64_t>();

@@ -119,6 +119,9 @@ const char* preconditionerName(Preconditioner p);
 /// Parses a name; throws std::invalid_argument naming the value otherwise.
 Preconditioner parsePreconditioner(const std::string& name);
 
+/// The largest IntegratorOptions::maxSubsteps and maxLinearIterations (2^30).
+inline constexpr Index kMaxIterationCap = Index(1) << 30;
+
 /// Parameters of the adaptive and the implicit methods (the others have none). Checked by
 /// validateIntegratorOptions; the Simulation checks them at construction.
 struct IntegratorOptions {
@@ -128,10 +131,10 @@ struct IntegratorOptions {
   double relativeTolerance = 1e-6;  // per coordinate, relative to max(|y0|, |y1|)
   double absoluteTolerance = 1e-6;  // per coordinate (> 0): m for positions, m/s for velocities
   double minSubstep = 1e-12;        // s; an error still too large at this substep fails the step
-  Index maxSubsteps = 100000;       // accepted + rejected substeps per step before it fails
+  Index maxSubsteps = 100000;       // accepted + rejected substeps per step before it fails (<= 2^30)
   // ImplicitEuler
-  double linearTolerance = 1e-6;  // CG stops when |r| <= linearTolerance |b| (filtered 2-norms)
-  Index maxLinearIterations = 1000;
+  double linearTolerance = 1e-6;                         // CG stops when |r| <= linearTolerance |b| (filtered 2-norms)
+  Index maxLinearIterations = 1000;                      // in [1, 2^30]
   Preconditioner preconditioner = Preconditioner::Auto;  // implicit Euler's CG
   // Projective: local/global iterations per step (one global solve each, >= 1)
   int projectiveIterations = 10;

@@ -99,12 +99,15 @@ struct RigidBodyDesc {
 enum class RigidTimeOfImpact { Speculative, Rollback };
 const char* rigidTimeOfImpactName(RigidTimeOfImpact mode);
 
+/// The largest RigidOptions::maxPairs (the pair buffers are reserved up front).
+inline constexpr Index kMaxRigidPairs = Index(1) << 28;
+
 struct RigidOptions {
   std::vector<RigidBodyDesc> bodies;  // none: no rigid bodies, nothing constructed, nothing paid
   NarrowPhaseOptions narrowPhase;
   int substeps = 4;                   // >= 1: solver substeps of a step (one collision detection)
-  int velocityIterations = 8;         // >= 1, per substep
-  int positionIterations = 1;         // >= 0, per substep: passes of the penetration recovery (split impulses)
+  int velocityIterations = 8;         // in [1, 1000], per substep
+  int positionIterations = 1;         // in [0, 1000], per substep: passes of the penetration recovery (split impulses)
   double speculativeDistance = 0.01;  // m (>= 0): contacts are made this far before touching
   bool continuous = true;             // grow each pair's margin by its motion over the step
   double linearSlop = 0.005;          // m: penetration left alone (>= 0)
@@ -112,7 +115,7 @@ struct RigidOptions {
   double maxPushVelocity = 3;         // m/s (> 0)
   double restitutionThreshold = 0.5;  // m/s: slower impacts do not bounce
   double staticSpeed = 0.01;          // m/s: tangential speed under which static friction applies
-  Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64
+  Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64; at most 2^28
   RigidTimeOfImpact timeOfImpact = RigidTimeOfImpact::Speculative;
   double rollbackPenetration = 0.005;  // Rollback: deepest penetration a chunk may end with, m (> 0)
   int maxHalvings = 12;                // Rollback: shortest chunk step / 2^maxHalvings (0..30)
@@ -216,15 +219,16 @@ class RigidWorld {
   /// Builds the model from options.bodies.
   RigidWorld(const RigidOptions& options, const Eigen::Vector3d& gravity);
 
-  /// Advances by h (s, > 0). On failure (a full pair buffer, a non-finite body) the state
-  /// is restored and the status says why (StepCode::CapacityExceeded / NonFinite with `body`).
+  /// Advances by h (s, finite and > 0, or std::invalid_argument). On failure (a full pair
+  /// buffer, a non-finite body) the state is restored and the status says why
+  /// (StepCode::CapacityExceeded / NonFinite with `body`).
   StepStatus step(double h, const Executor& executor);
 
   /// Puts the state back where the last step started (the caller's step failed elsewhere).
   void undoStep() { state_ = stepStart(); }
   /// The state at the start of the last step (where the bodies came from).
   const RigidState& stepStart() const { return rollback() ? stepBegin_ : backup_; }
-  /// World pose of piece `p` in state `s`.
+  /// World pose of piece `p` in state `s` (std::out_of_range for p outside [0, pieceCount())).
   Pose piecePose(Index p, const RigidState& s) const;
   /// Room for `capacity` support contacts (allocates: call before stepping).
   void reserveSupports(Index capacity);
@@ -232,11 +236,14 @@ class RigidWorld {
   /// increasing). They hold for one step.
   void setSupports(const SupportContact* contacts, Index count);
   /// Applies an impulse (N s, world) at a world point to a dynamic body (others ignore it):
-  /// how particles push bodies (rigid/particle_coupling.hpp).
+  /// how particles push bodies (rigid/particle_coupling.hpp). Throws std::invalid_argument
+  /// (the world unchanged) for a body outside [0, bodyCount()) or a non-finite impulse or point.
   void applyImpulse(Index body, const Eigen::Vector3d& impulse, const Eigen::Vector3d& point);
 
   const RigidModel& model() const { return *model_; }
   const RigidState& state() const { return state_; }
+  /// Starts from `state`: one entry per body, finite, orientations non-zero quaternions
+  /// (normalised here), a finite time; else std::invalid_argument and the world unchanged.
   void setState(const RigidState& state);
   /// Checkpoints (Simulation::save / load): the state, the kinematic bodies' path origins,
   /// the last step's pairs with their warm-start impulses and witness caches, its substep
@@ -247,7 +254,8 @@ class RigidWorld {
   const RigidOptions& options() const { return options_; }
   const RigidStats& lastStats() const { return last_; }
   const RigidStats& totalStats() const { return total_; }
-  /// Position (world) of body b's frame origin, as RigidBodyDesc::position names it.
+  /// Position (world) of body b's frame origin, as RigidBodyDesc::position names it (this
+  /// and angularMomentum: std::out_of_range for b outside [0, bodyCount())).
   Eigen::Vector3d bodyOrigin(Index b) const;
   /// Kinetic plus gravitational potential energy of the dynamic bodies, J (potential
   /// relative to height 0 along -gravity).
@@ -290,6 +298,7 @@ class RigidWorld {
   RigidState state_, backup_;  // backup_: where the current chunk started
   RigidState stepBegin_;       // Rollback: where the step started
   bool rollback() const { return options_.timeOfImpact == RigidTimeOfImpact::Rollback; }
+  void reservePairs(std::size_t capacity);  // every per-pair buffer (the constructor)
   RigidOptions options_;
   Eigen::Vector3d gravity_;
   RigidStats last_, total_;
