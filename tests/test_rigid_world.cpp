@@ -9,6 +9,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "support/test_support.hpp"
 #include "weft/model/model_builder.hpp"
@@ -349,6 +350,23 @@ TEST(RigidWorldInput, BadArgumentsAreRefusedAndChangeNothing) {
   EXPECT_EQ(message([&] { world.setState(bad); }), "RigidWorld::setState: state.time must be finite (s), got nan");
   same();
   EXPECT_TRUE(world.step(rigidSceneTimeStep(), exec).ok());
+}
+
+TEST(RigidWorldInput, TheSceneHelpersRefuseSizesTheirIndicesCannotHold) {
+  const auto message = [](auto&& f) -> std::string {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(message([] { hammockPins(1); }), "hammockPins: size must be in [2, 16384], got 1");
+  EXPECT_EQ(message([] { hammockPins(50000); }), "hammockPins: size must be in [2, 16384], got 50000");
+  EXPECT_EQ(message([] { tableclothGrip(0); }), "tableclothGrip: size must be in [2, 16384], got 0");
+  EXPECT_EQ(message([] { tableclothCloth(1 << 20); }), "tableclothCloth: size must be in [2, 16384], got 1048576");
+  EXPECT_EQ(message([] { slopeScene(90); }), "slopeScene: degrees must be in [0, 90), got 90");
+  EXPECT_EQ(hammockPins(3), (std::vector<Index>{0, 2, 6, 8}));
 }
 
 TEST(RigidContact, FullPairBufferIsReportedAndRestoresTheState) {

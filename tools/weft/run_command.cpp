@@ -560,7 +560,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                 ? " (" + std::to_string(*o.threads) + " asked for: the most this machine runs)"
                 : std::string())
         << ", forces: " << weft::forceStrategyName(sim.forceStrategy()) << "\n"
-        << "  stable dt    " << (std::isfinite(stableDt) ? std::to_string(stableDt) + " s" : std::string("unlimited"))
+        << "  stable dt    " << (std::isfinite(stableDt) ? shortest(stableDt) + " s" : std::string("unlimited"))
         << " estimated for this integrator (omega_max <= " << weft::maxAngularFrequency(model) << " rad/s)\n";
     out << "  effects      springs, gravity";
     for (const std::string& name : effects) out << ", " << name << " (" << effectSeconds(name) << " CPU s)";

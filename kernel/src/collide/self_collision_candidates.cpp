@@ -9,6 +9,7 @@
 #include <string>
 
 #include "collide/self_collider.hpp"
+#include "core/text.hpp"
 #include "weft/collide/self_collision.hpp"
 
 namespace weft {
@@ -181,8 +182,8 @@ void SelfCollider<S>::loadCarry(ArchiveReader& in) {
   const auto cull = in.value<std::uint8_t>();
   if (skin != skin_ || thicknesses != fnv1a64(thickness_.data(), thickness_.size() * sizeof(double)) ||
       cull != (options_.cullFlatRegions ? 1 : 0))
-    in.fail("written with other self-collision settings (skin " + std::to_string(skin) + " m, flat regions " +
-            (cull ? "culled" : "not culled") + "; this simulation: skin " + std::to_string(skin_) +
+    in.fail("written with other self-collision settings (skin " + detail::number(skin) + " m, flat regions " +
+            (cull ? "culled" : "not culled") + "; this simulation: skin " + detail::number(skin_) +
             " m, flat regions " + (options_.cullFlatRegions ? "culled" : "not culled") +
             ", or other thicknesses): a checkpoint resumes the simulation that wrote it");
   bool valid = false;

@@ -5,11 +5,13 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
+
 namespace weft {
 
 TriangleMesh makeIcosphere(const Vec3d& center, double radius, Index divisions) {
   if (!std::isfinite(radius) || !(radius > 0)) {
-    throw std::invalid_argument("makeIcosphere: radius must be finite and > 0, got " + std::to_string(radius));
+    detail::rejectField("makeIcosphere: radius", radius, "finite and > 0");
   }
   if (divisions < 1 || divisions > 4096) {
     throw std::invalid_argument("makeIcosphere: divisions must be in [1, 4096], got " + std::to_string(divisions));

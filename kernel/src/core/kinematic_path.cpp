@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
+
 namespace weft {
 
 namespace {
@@ -27,17 +29,7 @@ Vec3d rotate(const KinematicPath& path, const Vec3d& r, double angle) {
           r.z * c + kxr.z * s + k.z * kr * (1 - c)};
 }
 
-std::string text(const Vec3d& v) {
-  // Appended piece by piece (a chain of operator+ on temporaries trips GCC 12's -Wrestrict).
-  std::string out = "(";
-  out += std::to_string(v.x);
-  out += ", ";
-  out += std::to_string(v.y);
-  out += ", ";
-  out += std::to_string(v.z);
-  out += ")";
-  return out;
-}
+std::string text(const Vec3d& v) { return detail::number3(v); }
 
 }  // namespace
 

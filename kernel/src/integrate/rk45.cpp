@@ -28,6 +28,7 @@
 #include <limits>
 #include <utility>
 
+#include "core/text.hpp"
 #include "row_blocks.hpp"
 
 namespace weft::detail {
@@ -87,7 +88,7 @@ class Rk45 final : public Integrator<S> {
     in.value(errorPrevious_);
     in.array(a_[0], a_[0].rows(), 3, "rk45's first slope");
     if (!(std::isfinite(proposal_) && proposal_ >= 0 && std::isfinite(errorPrevious_) && errorPrevious_ > 0))
-      in.fail("rk45's proposed substep " + std::to_string(proposal_) + " or error " + std::to_string(errorPrevious_) +
+      in.fail("rk45's proposed substep " + detail::number(proposal_) + " or error " + detail::number(errorPrevious_) +
               " is out of range");
   }
 

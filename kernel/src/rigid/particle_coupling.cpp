@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
 #include "rigid/particle_contacts.hpp"
 
 namespace weft {
@@ -49,8 +50,7 @@ template <class S>
 ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness)
     : thickness_(thickness) {
   if (!(std::isfinite(thickness) && thickness > 0))
-    throw std::invalid_argument("ParticleBodyContacts: thickness must be finite and > 0 (m), got " +
-                                std::to_string(thickness));
+    detail::rejectField("ParticleBodyContacts: thickness", thickness, "finite and > 0 (m)");
   if (particleCount < 0) throw std::invalid_argument("ParticleBodyContacts: particleCount must be >= 0");
   records_.resize(static_cast<std::size_t>(particleCount) * kContactsPerParticle);
   const std::size_t pieces = static_cast<std::size_t>(bodies.pieceCount());

@@ -168,8 +168,7 @@ RigidOptions bulletScene(double speed) {
 }
 
 RigidOptions slopeScene(double degrees, double mu) {
-  if (!(degrees >= 0 && degrees < 90))
-    throw std::invalid_argument("slopeScene: degrees must be in [0, 90), got " + std::to_string(degrees));
+  if (!(degrees >= 0 && degrees < 90)) detail::rejectField("slopeScene: degrees", degrees, "in [0, 90)");
   if (!(std::isfinite(mu) && mu >= 0)) detail::rejectField("slopeScene: mu", mu, "finite and >= 0");
   const double a = degrees * 3.14159265358979323846 / 180;
   const Eigen::Quaterniond tilt(Eigen::AngleAxisd(a, Point3::UnitZ()));  // down the slope: -x
@@ -194,14 +193,26 @@ RigidOptions hammockBall() {
   return o;
 }
 
+namespace {
+/// A square cloth's side: at least 2, and its particles' indices within an Index (as
+/// addClothGrid requires: at most 2^28 particles).
+void requireSide(const char* field, Index size) {
+  if (size < 2 || size > (Index(1) << 14))
+    throw std::invalid_argument(std::string(field) + " must be in [2, 16384], got " + std::to_string(size));
+}
+}  // namespace
+
 ClothGridSpec hammockCloth(Index size) {
-  if (size < 2) throw std::invalid_argument("hammockCloth: size must be >= 2, got " + std::to_string(size));
+  requireSide("hammockCloth: size", size);
   ClothGridSpec spec = flagSpec(size);
   spec.origin = {-0.5, 0.5, -0.5};
   return spec;
 }
 
-std::vector<Index> hammockPins(Index size) { return {0, size - 1, size * (size - 1), size * size - 1}; }
+std::vector<Index> hammockPins(Index size) {
+  requireSide("hammockPins: size", size);
+  return {0, size - 1, size * (size - 1), size * size - 1};
+}
 
 namespace {
 // The tablecloth trick's layout: the cloth lies one particle thickness (the default
@@ -236,7 +247,7 @@ RigidOptions tableclothBodies() {
 }
 
 ClothGridSpec tableclothCloth(Index size) {
-  if (size < 2) throw std::invalid_argument("tableclothCloth: size must be >= 2, got " + std::to_string(size));
+  requireSide("tableclothCloth: size", size);
   ClothGridSpec spec = flagSpec(size);  // rows along +x, columns along +z
   spec.origin = {kClothLeft, tableclothTableTop() + kClothThickness, -0.5};
   return spec;
@@ -245,6 +256,7 @@ ClothGridSpec tableclothCloth(Index size) {
 std::vector<Index> tableclothGrip(Index size) {
   // Particle (row r, column c) is r * size + c at origin + c spacing x + r spacing z: the
   // +x edge is the last column.
+  requireSide("tableclothGrip: size", size);
   std::vector<Index> grip;
   for (Index r = 0; r < size; ++r) grip.push_back(r * size + size - 1);
   return grip;
