@@ -840,6 +840,7 @@ const std::vector<BadScene>& badScenes() {
       {"dt_out_of_float_range", noTiming(R"(, "precision": "float", "dt": 1e39, "steps": 1)"), "dt",
        "must be within the range of float precision"},
       {"dt_below_float_range", noTiming(R"(, "precision": "float", "dt": 1e-46, "steps": 1)"), "dt", "got 1e-46"},
+      {"stretch_below_rest_length", top(R"(, "stability": {"max_stretch": 0.5})"), "stability.max_stretch", "got 0.5"},
       {"wind_out_of_float_range", top(R"(, "precision": "float", "effects": {"wind": {"velocity": [1e40, 0, 0]}})"),
        "effects.wind.velocity[0]", "got 1e+40"},
       {"grid_stencil_for_a_rope", top(R"(, "force_strategy": "grid-stencil")"), "force_strategy",

@@ -464,7 +464,9 @@ TYPED_TEST(SimulationTest, BadOptionsThrowNamingTheField) {
   expectBadOptions<S>(o, "gravity", "got (0, nan, 0)");
   o.gravity = {0, -9.81, 0};
   o.stability.maxStretch = std::numeric_limits<double>::quiet_NaN();
-  expectBadOptions<S>(o, "maxStretch", "");
+  expectBadOptions<S>(o, "SimulationOptions.stability.maxStretch", "got nan");
+  o.stability.maxStretch = 0.5;  // (a spring at rest would fail every step)
+  expectBadOptions<S>(o, "SimulationOptions.stability.maxStretch", "got 0.5");
 }
 
 TYPED_TEST(SimulationTest, BadTimeStepIsRejectedAndKeepsTheOldOne) {

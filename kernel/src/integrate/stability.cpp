@@ -5,9 +5,18 @@
 #include <cstdint>
 #include <limits>
 #include <sstream>
+#include <string>
 #include <type_traits>
 
+#include "core/text.hpp"
+
 namespace weft {
+
+void validateStabilityOptions(const StabilityOptions& o, const char* where) {
+  if (std::isnan(o.maxStretch) || (o.maxStretch > 0 && o.maxStretch < 1))
+    detail::rejectField(std::string(where) + ".maxStretch", o.maxStretch,
+                        "<= 0 (no stretch check) or >= 1 (a multiple of the rest length)");
+}
 
 const char* stepCodeName(StepCode code) {
   switch (code) {

@@ -239,6 +239,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     r.object(j, "stability", {"enabled", "max_stretch"});
     o.stability.enabled = r.boolean(j, "stability", "enabled", o.stability.enabled);
     o.stability.maxStretch = r.anyNumber(j, "stability", "max_stretch", o.stability.maxStretch);
+    r.kernelRules(j, "stability", "stability.", [&] { validateStabilityOptions(o.stability); });
   }
   if (scene.precision == Precision::Float)
     requireScalarRange<float>(o, [&r](const std::string& field, const std::string& what) { r.fail(field, what); });

@@ -30,8 +30,7 @@ const SimulationOptions& validated(const SimulationOptions& o) {
   validateCollision(o.collision, "SimulationOptions.collision");
   validateSelfCollision(o.selfCollision, "SimulationOptions.selfCollision");
   validateRigidOptions(o.rigid);
-  if (std::isnan(o.stability.maxStretch))
-    throw std::invalid_argument("SimulationOptions.stability.maxStretch must not be NaN");
+  validateStabilityOptions(o.stability, "SimulationOptions.stability");
   return o;
 }
 

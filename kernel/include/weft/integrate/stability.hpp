@@ -27,9 +27,13 @@ namespace weft {
 struct StabilityOptions {
   bool enabled = true;
   /// A spring longer than maxStretch x its rest length fails the check (<= 0: no
-  /// stretch check). Springs of rest length 0 are covered by the finiteness check only.
+  /// stretch check; else at least 1, or a spring at rest would fail). Springs of rest
+  /// length 0 are covered by the finiteness check only.
   double maxStretch = 10;
 };
+/// Throws std::invalid_argument ("<where>.maxStretch must be ..., got ...") for a NaN
+/// maxStretch or one in (0, 1).
+void validateStabilityOptions(const StabilityOptions& options, const char* where = "stability");
 
 enum class StepCode {
   Ok = 0,
