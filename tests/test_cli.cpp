@@ -397,6 +397,10 @@ TEST(Cli, SoakRunsEachSceneOnBothThreadCountsAndChecksIt) {
       EXPECT_NE(line.find("| pass |"), std::string::npos) << line;
     }
   EXPECT_EQ(rows, 3);
+  // More simulated seconds than an int64 counts steps of: --max-steps still decides.
+  const CliRun far = weft("soak --seconds 1e16 --max-steps 3 --threads 1 --scene stack", true);
+  EXPECT_EQ(far.exitCode, 0) << far.out;
+  EXPECT_NE(far.out.find("| stack | double | 3 |"), std::string::npos) << far.out;
   EXPECT_EQ(weft("soak --seconds 0", true).exitCode, 2);
   EXPECT_EQ(weft("soak --scene no-such-scene", true).exitCode, 2);
 }

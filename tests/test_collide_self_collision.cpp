@@ -505,6 +505,24 @@ Simulation<S> makeScene(const std::string& name, Index size, bool self, int thre
   return Simulation<S>(std::move(a.built), a.options);
 }
 
+// A step far too long for the integrator: the collision response moves particles after
+// the integrator's result was checked, and what it makes is checked too. Here it stretches
+// a spring past the limit, and the step fails (the state as it was) instead of reporting
+// ok with a spring eleven times its rest length.
+TEST(SelfCollision, AResponseThatOverstretchesFailsTheStep) {
+  SceneSpec spec = builtinSceneSpec("fold", 16);
+  spec.simulation.integrator = IntegratorKind::Rk45;
+  spec.simulation.dt = 10;
+  AssembledScene<double> a = assembleScene<double>(spec);
+  a.options.threads = 1;
+  Simulation<double> sim(std::move(a.built), a.options);
+  const std::uint64_t before = stateHash(sim.state());
+  const StepStatus s = sim.step();
+  EXPECT_EQ(s.code, StepCode::Overstretched) << s.message();
+  EXPECT_EQ(stateHash(sim.state()), before);
+  EXPECT_EQ(sim.stepCount(), 0);
+}
+
 struct HardScene {
   const char* name;
   Index size;

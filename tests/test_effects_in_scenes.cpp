@@ -460,6 +460,8 @@ TEST(Effects, BadParametersAreRejectedByName) {
   e = {};
   e.wind.gustScale = -1;
   expectRejected(e, "effects.wind.gustScale");
+  e.wind.gustScale = 1e-30;  // (sines of 1e31: NaN at the first step)
+  expectRejected(e, "effects.wind.gustScale");
   e = {};
   e.repulsion.radius = NAN;
   expectRejected(e, "effects.repulsion.radius");

@@ -128,6 +128,8 @@ TEST(Render, BadInputsAreRefusedNamingTheOption) {
       {"flag --size 640 --out '" + dir + "'", "--size", "640"},
       {"flag --every 0 --out '" + dir + "'", "--every", "0"},
       {"flag --camera 10,95 --out '" + dir + "'", "--camera", "10,95"},
+      {"flag --camera 1e308,0,1e308 --out '" + dir + "'", "--camera", "1e308,0,1e308"},
+      {"flag --camera 10,20,1e300 --out '" + dir + "'", "--camera", "distance must be > 0 and at most 1e9 m"},
       {"flag --framing sideways --out '" + dir + "'", "--framing", "sideways"},
       {"flag --out '" + file + "/pictures'", "--out", file + "/pictures"},
       {"nosuchscene --out '" + dir + "'", "nosuchscene", "flag"},

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -270,6 +271,21 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   o.maxPairs = kMaxRigidPairs + 1;  // (the pair buffers are reserved up front)
   expectInvalid(o, "rigid.maxPairs must be in [0, 2^28] (0 = automatic), got 268435457");
   o = stackScene(2);
+  o.bodies[1].density = 1e-100;  // (its inverse mass and inertia overflow in the solver)
+  EXPECT_THAT(
+      [&] {
+        try {
+          buildRigidModel(o.bodies);
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+        return std::string("accepted");
+      }(),
+      HasSubstr("rigid.bodies[1].mass must be in [1e-15, 1e15] kg (given, or density x volume), got "));
+  o = stackScene(2);
+  o.bodies[1].mass = 1e300;
+  EXPECT_THROW(buildRigidModel(o.bodies), std::invalid_argument);
+  o = stackScene(2);
   o.rollbackPenetration = 0;
   expectInvalid(o, "rigid.rollbackPenetration must be finite and > 0 (m), got 0");
   o = stackScene(2);
@@ -367,6 +383,27 @@ TEST(RigidWorldInput, TheSceneHelpersRefuseSizesTheirIndicesCannotHold) {
   EXPECT_EQ(message([] { tableclothCloth(1 << 20); }), "tableclothCloth: size must be in [2, 16384], got 1048576");
   EXPECT_EQ(message([] { slopeScene(90); }), "slopeScene: degrees must be in [0, 90), got 90");
   EXPECT_EQ(hammockPins(3), (std::vector<Index>{0, 2, 6, 8}));
+}
+
+// Boxes placed inside each other end every chunk deeper than the limit, however short:
+// rollback cannot help them, and a step must not take 2^maxHalvings chunks trying.
+TEST(RigidContact, RollbackOnBodiesThatStartOverlappingTakesBoundedChunks) {
+  Executor exec(1);
+  RigidOptions o = stackScene(1);
+  o.timeOfImpact = RigidTimeOfImpact::Rollback;
+  o.maxHalvings = 30;  // (the largest: without a bound, 2^31 chunks a step)
+  const RigidBodyDesc box = o.bodies.back();
+  for (int k = 0; k < 3; ++k) o.bodies.push_back(box);  // four boxes in one place
+  RigidWorld world(o, kGravity);
+  std::int64_t most = 0, limitHits = 0;
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(world.step(rigidSceneTimeStep(), exec).ok()) << i;
+    most = std::max(most, world.lastStats().chunks + world.lastStats().rollbacks);
+    limitHits += world.lastStats().halvingLimitHits;
+  }
+  EXPECT_GT(limitHits, 0) << "the scene should reach the halving limit";
+  EXPECT_LE(most, 17 * 31 + 2) << "chunks taken or taken back in one step";
+  for (Index b = 0; b < world.model().bodyCount(); ++b) EXPECT_TRUE(world.state().x[b].allFinite()) << b;
 }
 
 TEST(RigidContact, FullPairBufferIsReportedAndRestoresTheState) {

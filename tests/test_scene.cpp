@@ -1044,7 +1044,7 @@ const std::vector<BadScene>& badScenes() {
       // Ranges the kernel checks (Reader::kernelRules): its message at the file's field, with
       // the value as the file wrote it (not 17 digits), obstacles numbered as in the file.
       {"wind_gust_scale_negative", top(R"(, "effects": {"wind": {"gust_scale": -0.1}})"), "effects.wind.gust_scale",
-       "must be finite and > 0 (m), got -0.1"},
+       "must be finite and >= 1e-6 (m), got -0.1"},
       {"gust_modes_beyond_int", top(R"(, "effects": {"wind": {"gust_modes": 4294967296}})"), "effects.wind.gust_modes",
        "got 4294967296"},
       {"integration_negative_rtol", top(R"(, "integration": {"rtol": -0.3})"), "integration.rtol",

@@ -128,7 +128,7 @@ const CLI::Validator imageSize(
     },
     "WxH");
 
-/// "AZ,EL" or "AZ,EL,DIST": degrees, degrees in (-90, 90), metres > 0.
+/// "AZ,EL" or "AZ,EL,DIST": degrees in [-3600, 3600], degrees in (-90, 90), metres in (0, 1e9].
 const CLI::Validator cameraAngles(
     [](std::string& text) -> std::string {
       std::vector<double> values;
@@ -147,8 +147,11 @@ const CLI::Validator cameraAngles(
       }
       if (values.size() < 2 || values.size() > 3)
         return "must be AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, metres), got " + text;
+      // (Bounded so that the camera's position and the picture stay finite numbers.)
+      if (!(std::abs(values[0]) <= 3600)) return "azimuth must be between -3600 and 3600 degrees, got " + text;
       if (!(values[1] > -90 && values[1] < 90)) return "elevation must be between -90 and 90 degrees, got " + text;
-      if (values.size() == 3 && !(values[2] > 0)) return "distance must be > 0 m, got " + text;
+      if (values.size() == 3 && !(values[2] > 0 && values[2] <= 1e9))
+        return "distance must be > 0 and at most 1e9 m, got " + text;
       return {};
     },
     "AZ,EL[,DIST]");

@@ -114,7 +114,10 @@ int runSoak(const SoakOptions& o) {
   for (const std::string& name : scenes) {
     const weft::SceneSpec spec = weft::builtinSceneSpec(name);
     const double dt = spec.simulation.dt;
-    const std::int64_t steps = std::min<std::int64_t>(o.maxSteps, static_cast<std::int64_t>(std::ceil(o.seconds / dt)));
+    // (Compared as doubles: --seconds 1e16 is more steps than an int64 holds.)
+    const double wanted = std::ceil(o.seconds / dt);
+    const std::int64_t steps =
+        wanted < static_cast<double>(o.maxSteps) ? static_cast<std::int64_t>(wanted) : o.maxSteps;
     std::vector<RunResult> runs;
     for (const int threads : o.threads)
       runs.push_back(spec.precision == weft::Precision::Float ? soakRun<float>(spec, steps, threads)

@@ -485,8 +485,10 @@ void validateEffects(const ParticleEffects& e, const char* where) {
                "finite and >= 0 (m^2)");
   requireField(std::isfinite(wind.gustStrength) && wind.gustStrength >= 0, w + "wind.gustStrength", wind.gustStrength,
                "finite and >= 0 (m/s)");
-  requireField(std::isfinite(wind.gustScale) && wind.gustScale > 0, w + "wind.gustScale", wind.gustScale,
-               "finite and > 0 (m)");
+  // (Wavelengths far below a micrometre put sines of 1e30 and more into the gusts, where
+  // they are no longer numbers: NaN at the first step.)
+  requireField(std::isfinite(wind.gustScale) && wind.gustScale >= 1e-6, w + "wind.gustScale", wind.gustScale,
+               "finite and >= 1e-6 (m)");
   requireField(std::isfinite(wind.gustPeriod) && wind.gustPeriod > 0, w + "wind.gustPeriod", wind.gustPeriod,
                "finite and > 0 (s)");
   requireField(wind.gustModes >= 1 && wind.gustModes <= 64, w + "wind.gustModes", wind.gustModes, "in [1, 64]");

@@ -323,13 +323,22 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
   // The original design's loop: chunks of the step, each cut before it is taken while a
   // pair apart could meet too deep within it, or taken back after it ended too deep; the
   // next chunk may be twice as long again. Chunk lengths are h / 2^k, so they add up to h.
+  // Bodies that start (or are pushed) deeper into each other than the limit end chunk
+  // after chunk too deep however short it is: rollback has no hold on them, and the loop
+  // could take up to 2^maxHalvings chunks, each twice. After 16 (maxHalvings + 1) chunks
+  // taken or taken back in a step (a landing pile takes about 4), the rest of the step is
+  // taken without rollback (chunks still doubling), so a step costs at most about
+  // 17 (maxHalvings + 1) chunks.
+  const std::int64_t budget = 16 * (options_.maxHalvings + 1);
+  std::int64_t attempts = 0;
   copyState(state_, stepBegin_);
   RigidStats step;
   const double shortest = std::ldexp(h, -options_.maxHalvings);
   double done = 0, chunk = h;
   while (done < h) {
     const double length = std::min(chunk, h - done);
-    const bool force = length <= shortest;
+    const bool spent = attempts++ >= budget;
+    const bool force = length <= shortest || spent;
     const StepStatus s = stepChunk(length, executor, force, shorter);
     if (!s.ok()) {
       supportInput_.clear();

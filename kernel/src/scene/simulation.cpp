@@ -119,6 +119,10 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
                                                    options_.collisionModel, std::move(triangles));
   }
+  if (options_.collision.any() || options_.selfCollision.enabled) {
+    backupX_.resize(model_->particleCount(), 3);
+    backupV_.resize(model_->particleCount(), 3);
+  }
   if (options_.selfCollision.enabled) {
     validateSelfCollision(options_.selfCollision, *model_, state_.x, "SimulationOptions.selfCollision");
     self_ = std::make_unique<SelfCollider<S>>(*model_, options_.selfCollision, state_.x, *executor_);
@@ -335,6 +339,8 @@ StepStatus Simulation<S>::stepWithContacts() {
   lastWork_ = StepWork{};
   lastCollision_ = CollisionStats{};
   lastSelf_ = SelfCollisionStats{};
+  backupX_ = state_.x;  // (same sizes: copies, no allocation)
+  backupV_ = state_.v;
   bool ok = true;
   while (done < total) {
     const std::int64_t ticks = std::min(total >> halvings, total - done);
@@ -372,14 +378,28 @@ StepStatus Simulation<S>::stepWithContacts() {
         selfSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - selfStart).count();
     }
     lastSelf_ += self;
-    if (found.contacts > 0 || found.edgeContacts > 0 || self.contacts > 0 || self.frozen > 0)
+    if (found.contacts > 0 || found.edgeContacts > 0 || self.contacts > 0 || self.frozen > 0) {
       integrator_->reset();  // the response changed the candidate it may have cached
+      // The response moved particles after the integrator's candidate was checked: what it
+      // made is checked too (a response to a huge step can stretch a spring past the limit).
+      executor_->run([&] { status_ = stability_.check(nextX_, nextV_, *executor_); });
+      if (!status_.ok()) {
+        status_.time = state_.time;
+        rejectChunk();  // the state is left as it was
+        ok = false;
+        break;
+      }
+    }
     acceptChunk(h);
     done += ticks;
   }
   if (ok) {
     state_.time = stepStart + dt;  // the same clock as a step without obstacles
     ++stepCount_;
+  } else if (done > 0) {  // a failure leaves the state as the step found it
+    state_.x = backupX_;
+    state_.v = backupV_;
+    state_.time = stepStart;
   }
   totalWork_ += lastWork_;
   totalCollision_ += lastCollision_;

@@ -53,7 +53,7 @@ struct WindEffect {
   double liftCoefficient = 0.5;  // C_L (>= 0)
   double particleArea = 1e-3;    // A_p, m^2, for particles on no triangle (>= 0)
   double gustStrength = 0;       // rms gust speed, m/s (>= 0; 0 = steady wind)
-  double gustScale = 1.0;        // typical gust wavelength, m (> 0)
+  double gustScale = 1.0;        // typical gust wavelength, m (>= 1e-6)
   double gustPeriod = 1.0;       // typical gust period, s (> 0)
   int gustModes = 8;             // plane waves summed (1..64)
   std::uint64_t seed = 1;        // gust pattern

@@ -77,7 +77,7 @@ struct RigidBodyDesc {
   BodyMotion motion = BodyMotion::Dynamic;
   std::vector<RigidShapeDesc> shapes;  // >= 1 piece
   double density = 1000;               // kg/m^3 (> 0)
-  double mass = 0;                     // > 0: the body's mass (inertia scaled to match); 0: from density
+  double mass = 0;  // > 0: the body's mass (inertia scaled to match); 0: from density; in [1e-15, 1e15] kg either way
   Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // body frame axes, world
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();               // of the centre of mass, m/s
@@ -99,6 +99,8 @@ struct RigidBodyDesc {
 enum class RigidTimeOfImpact { Speculative, Rollback };
 const char* rigidTimeOfImpactName(RigidTimeOfImpact mode);
 
+/// A body's mass, given or from its density and volume, must be within these (kg).
+inline constexpr double kMinBodyMass = 1e-15, kMaxBodyMass = 1e15;
 /// The largest RigidOptions::maxPairs (the pair buffers are reserved up front).
 inline constexpr Index kMaxRigidPairs = Index(1) << 28;
 

@@ -240,6 +240,9 @@ class Simulation {
   std::unique_ptr<RigidWorld> rigid_;                  // null without rigid bodies
   std::unique_ptr<ParticleBodyContacts<S>> coupling_;  // null unless particles and bodies meet
   Vec3Array<S> stepStartX_;                            // (n x 3) positions at the step's start, m (coupling only)
+  // With contacts or self-collision: the state at the step's start, put back when a chunk
+  // after the first fails (the chunks before it were taken).
+  Vec3Array<S> backupX_, backupV_;
   ParticleBodyStats lastCoupling_;
   /// Checkpoints: the fields of the "SIMU" section in order, written by an ArchiveWriter
   /// (Self const) and read by an ArchiveReader with the same code (checkpoint.cpp).
