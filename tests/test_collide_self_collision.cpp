@@ -519,7 +519,10 @@ TEST(SelfCollision, AResponseThatOverstretchesFailsTheStep) {
   const std::uint64_t before = stateHash(sim.state());
   const StepStatus s = sim.step();
   EXPECT_EQ(s.code, StepCode::Overstretched) << s.message();
+  EXPECT_GT(sim.lastCollision().rollbacks + sim.lastSelfCollision().contacts, 0) << "the step was split or responded";
   EXPECT_EQ(stateHash(sim.state()), before);
+  EXPECT_EQ(sim.state().time, 0.0);
+  EXPECT_EQ(s.time, 0.0);
   EXPECT_EQ(sim.stepCount(), 0);
 }
 

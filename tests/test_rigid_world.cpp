@@ -276,8 +276,10 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   expectInvalid(o, "rigid.maxPairs must be in [0, 2^28] (0 = automatic), got 268435457");
   o = stackScene(2);
   o.bodies[1].density = 1e-100;  // (its inverse mass and inertia overflow in the solver)
-  EXPECT_THAT(message([&] { buildRigidModel(o.bodies); }),
-              HasSubstr("rigid.bodies[1].mass must be in [1e-15, 1e15] kg (given, or density x volume), got "));
+  EXPECT_THAT(
+      message([&] { buildRigidModel(o.bodies); }),
+      HasSubstr(
+          "rigid.bodies[1].mass must be in [1e-15, 1e15] kg for a dynamic body (given, or density x volume), got "));
   o = stackScene(2);
   o.bodies[1].mass = 1e300;
   EXPECT_THROW(buildRigidModel(o.bodies), std::invalid_argument);

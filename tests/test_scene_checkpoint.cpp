@@ -250,7 +250,7 @@ TEST(Resume, ACheckpointWithANonFiniteCarryOrMismatchedListsIsRefused) {
     std::memcpy(bytes.data() + at, &nan, 8);
     Simulation<double> target = build<double>(spec, 1);
     EXPECT_EQ(refusedInto(target, resealed(bytes)),
-              "checkpoint 'c.wckpt': implicit Euler's warm start: entry (5, 0) is not finite");
+              "checkpoint 'c.wckpt': implicit Euler's warm start: entry (5, 0) is nan, not a finite number");
   }
   {  // a kinematic pin's origin (the last vector of the SIMU section, just before INTG)
     const SceneSpec spec = builtinSceneSpec("twist", 12);
@@ -290,6 +290,32 @@ TEST(Resume, ACheckpointWithANonFiniteCarryOrMismatchedListsIsRefused) {
               "checkpoint 'c.wckpt': 0 witness caches for " + std::to_string(pairs) + " pairs");
     target.restore(bytes, "c.wckpt");  // the file as written still loads, and steps
     EXPECT_TRUE(target.step().ok());
+  }
+}
+
+// After a failed step an integrator's carry may hold what the failure made (NaN), unused
+// (its flag is off): the checkpoint of that simulation loads, and a refused file loaded
+// into it puts it back as it was (the state before loading is not refused in turn).
+TEST(Resume, ACheckpointAfterAFailedStepLoadsAndARefusedOneLeavesItAlone) {
+  for (const IntegratorKind kind : {IntegratorKind::VelocityVerlet, IntegratorKind::Rk45, IntegratorKind::ImplicitEuler}) {
+    SCOPED_TRACE(integratorName(kind));
+    SceneSpec spec = builtinSceneSpec("flag", 8);
+    spec.simulation.integrator = kind;
+    Simulation<double> sim = build<double>(spec, 1);
+    ASSERT_TRUE(sim.run(3).ok());
+    State<double> wild = sim.state();
+    wild.v(20, 1) = 1e300;  // the next step overflows
+    sim.setState(wild);
+    EXPECT_FALSE(sim.step().ok());
+    const std::string bytes = sim.checkpoint();
+    Simulation<double> other = build<double>(spec, 1);
+    EXPECT_EQ(refusal([&] { other.restore(bytes, "c.wckpt"); }), "");
+    EXPECT_EQ(stateHash(other.state()), stateHash(sim.state()));
+    std::string damaged = bytes;
+    const double nan = std::nan("");
+    std::memcpy(damaged.data() + sectionBody(damaged, "SIMU") + 16, &nan, 8);  // the first position
+    const std::string m = refusedInto(sim, resealed(damaged));
+    EXPECT_NE(m.find("the state is not finite"), std::string::npos) << m;
   }
 }
 

@@ -98,7 +98,7 @@ class ImplicitEuler final : public Integrator<S> {
   }
   void loadCarry(ArchiveReader& in) override {
     in.flag(warm_, "implicit Euler's flag");
-    in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start");
+    in.array(dv_, dv_.rows(), 3, "implicit Euler's warm start", warm_);  // (read only when warm)
     in.value(multigridStep_);
     in.value(acceptedStep_);
     in.value(threshold_);

@@ -66,7 +66,7 @@ class Rk45 final : public Integrator<S> {
     double sumE = 0;
     for (const double e : kE) sumE += std::abs(e);
     noiseRate_ = static_cast<double>(std::numeric_limits<S>::epsilon()) * omegaMax * omegaMax * sumE;
-    for (auto& a : a_) a.resize(n, 3);
+    for (auto& a : a_) a.setZero(n, 3);  // (no garbage in a checkpoint)
     for (auto& v : vs_) v.resize(n, 3);
     for (auto& x : xs_) x.resize(n, 3);
   }
@@ -86,7 +86,7 @@ class Rk45 final : public Integrator<S> {
     in.flag(primed_, "rk45's flag");
     in.value(proposal_);
     in.value(errorPrevious_);
-    in.array(a_[0], a_[0].rows(), 3, "rk45's first slope");
+    in.array(a_[0], a_[0].rows(), 3, "rk45's first slope", primed_);  // (read only when primed)
     if (!(std::isfinite(proposal_) && proposal_ >= 0 && std::isfinite(errorPrevious_) && errorPrevious_ > 0))
       in.fail("rk45's proposed substep " + detail::number(proposal_) + " or error " + detail::number(errorPrevious_) +
               " is out of range");

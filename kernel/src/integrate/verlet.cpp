@@ -19,7 +19,7 @@ namespace {
 template <class S>
 class VelocityVerlet final : public Integrator<S> {
  public:
-  explicit VelocityVerlet(Index n) : a_(n, 3), vp_(n, 3) {}
+  explicit VelocityVerlet(Index n) : a_(Vec3Array<S>::Zero(n, 3)), vp_(n, 3) {}  // (a_: no garbage in a checkpoint)
   IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
   void reset() override { primed_ = false; }
   void saveCarry(ArchiveWriter& out) const override {
@@ -28,7 +28,7 @@ class VelocityVerlet final : public Integrator<S> {
   }
   void loadCarry(ArchiveReader& in) override {
     in.flag(primed_, "verlet's flag");
-    in.array(a_, a_.rows(), 3, "verlet's acceleration");
+    in.array(a_, a_.rows(), 3, "verlet's acceleration", primed_);  // (read only when primed)
   }
 
   StepWork advance(ForceField<S>& forces, const Vec3Array<S>& x0, const Vec3Array<S>& v0, S h, Vec3Array<S>& x1,

@@ -126,8 +126,11 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
   const Rates r = memoryRates(scene.simulation.integrator, isFloat);
   const double particles = static_cast<double>(e.particles), springs = static_cast<double>(e.springs),
                triangles = static_cast<double>(e.triangles);
+  // With obstacles or self-collision: x and v at the step's start, put back on a failure.
+  const double stepBackup =
+      scene.simulation.collision.any() || scene.simulation.selfCollision.enabled ? 6.0 * (isFloat ? 4 : 8) : 0.0;
   const double simulation =
-      (r.particle + preconditionerBytesPerParticle(scene.simulation)) * particles + r.spring * springs +
+      (r.particle + preconditionerBytesPerParticle(scene.simulation) + stepBackup) * particles + r.spring * springs +
       kBytesPerTriangle * triangles +
       (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
       kBytesPerRigidBody * static_cast<double>(e.rigidBodies);

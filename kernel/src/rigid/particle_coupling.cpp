@@ -299,6 +299,9 @@ ParticleBodyStats ParticleBodyContacts<S>::resolve(const Vec3Array<S>& x0, Vec3A
   ParticleBodyStats stats;
   for (const Record& r : records_) {
     if (r.piece < 0) continue;
+    // (A reaction that is not a number is not passed on: applyImpulse would refuse it, and
+    // the particle that made it fails the next step's check.)
+    if (!(r.impulse.allFinite() && r.point.allFinite())) continue;
     ++stats.contacts;
     stats.impulse += r.impulse.norm();
     world.applyImpulse(m.pieces[r.piece].body, -r.impulse, r.point);

@@ -221,12 +221,15 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
     if (!finiteMass)
       throw std::invalid_argument(f + "mass: the body's mass or inertia is not a finite positive number (" +
                                   text(mass) + " kg): its size or density is out of range");
-    // The solver divides by the mass and the inertia and multiplies them by speeds squared:
-    // a body far outside what any scene holds (a grain of dust to a ship) overflows there.
-    require(mass >= kMinBodyMass && mass <= kMaxBodyMass, f + "mass",
-            "in [1e-15, 1e15] kg (given, or density x volume)", text(mass));
-    require(Mat3(inertia.inverse()).allFinite(), f + "mass",
-            "a body whose inertia can be inverted (its shape is too thin)", text(mass));
+    // The solver divides by a moving body's mass and inertia and multiplies them by speeds
+    // squared: a body far outside what any scene holds (a grain of dust to a ship)
+    // overflows there. (Static and kinematic bodies' masses are not used.)
+    if (d.motion == BodyMotion::Dynamic) {
+      require(mass >= kMinBodyMass && mass <= kMaxBodyMass, f + "mass",
+              "in [1e-15, 1e15] kg for a dynamic body (given, or density x volume)", text(mass));
+      require(Mat3(inertia.inverse()).allFinite(), f + "shapes", "a body whose inertia can be inverted (not too thin)",
+              "inertia diagonal " + text(Vec3(inertia.diagonal())));
+    }
     m.names.push_back(d.name.empty() ? "body" + std::to_string(b) : d.name);
     m.motion.push_back(d.motion);
     m.mass.push_back(mass);

@@ -24,11 +24,11 @@ Vec3d toVec3d(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
-/// Throws std::out_of_range unless 0 <= k < count ("<where>: <what> k is outside [0, count)").
+/// Throws std::invalid_argument unless 0 <= k < count ("<where>: <what> k is outside [0, count)").
 void requireIndex(Index k, Index count, const char* where, const char* what) {
   if (k < 0 || k >= count)
-    throw std::out_of_range(std::string(where) + ": " + what + " " + std::to_string(k) + " is outside [0, " +
-                            std::to_string(count) + ")");
+    throw std::invalid_argument(std::string(where) + ": " + what + " " + std::to_string(k) + " is outside [0, " +
+                                std::to_string(count) + ")");
 }
 
 /// Whether q can be normalised to a rotation: finite and not (nearly) zero (the rule
@@ -99,8 +99,9 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   } catch (const std::bad_alloc&) {
     const double bytes = static_cast<double>(cap) * (2 * sizeof(Pair) + 2 * sizeof(PairCache) +
                                                      sizeof(ContactManifold) + 8 * sizeof(Constraint) + sizeof(Block));
-    throw std::invalid_argument("RigidWorld: rigid.maxPairs = " + std::to_string(options_.maxPairs) +
-                                " pairs need about " + detail::number(std::round(bytes / (1 << 30))) +
+    throw std::invalid_argument("RigidWorld: rigid.maxPairs = " + std::to_string(options_.maxPairs) + " (" +
+                                std::to_string(cap) + " pairs) needs about " +
+                                detail::number(std::round(10 * bytes / (1 << 30)) / 10) +
                                 " GiB of contact buffers, more than this machine could allocate");
   }
   bodyColours_.resize(n);

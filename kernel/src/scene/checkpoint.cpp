@@ -22,10 +22,12 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
 #include "collide/self_collider.hpp"
+#include "core/text.hpp"
 #include "weft/scene/simulation.hpp"
 
 #ifndef WEFT_VERSION_STRING
@@ -186,7 +188,9 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
         in.fail("kinematic pin origin " + std::to_string(k) + " is not finite");
       tracks_[k].reference = o;
     }
-    if (!(std::isfinite(options_.dt) && options_.dt > 0)) in.fail("the time step is not > 0");
+    if (!(std::isfinite(options_.dt) && options_.dt >= static_cast<double>(std::numeric_limits<S>::min()) &&
+          options_.dt <= static_cast<double>(std::numeric_limits<S>::max())))
+      in.fail("the time step " + detail::number(options_.dt) + " s is not > 0 within the model's precision");
     if (!std::isfinite(state_.time) || !std::isfinite(clockStart_)) in.fail("the time is not finite");
     if (stepCount_ < 0) in.fail("a negative step count, " + std::to_string(stepCount_));
     const int code = static_cast<int>(status_.code);
@@ -202,7 +206,17 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
     in.section("END ");
     if (in.remaining() != sizeof(std::uint64_t)) in.fail(std::to_string(in.remaining() - 8) + " bytes too many");
   } catch (...) {
-    restore(before, "the state before loading");
+    // (Once only: should the state before loading not load back, nothing more can be
+    // tried, and its error goes up rather than another attempt.)
+    if (rollingBack_) throw;
+    rollingBack_ = true;
+    try {
+      restore(before, "the state before loading");
+    } catch (...) {
+      rollingBack_ = false;
+      throw;
+    }
+    rollingBack_ = false;
     throw;
   }
 }

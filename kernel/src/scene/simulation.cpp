@@ -400,6 +400,7 @@ StepStatus Simulation<S>::stepWithContacts() {
     state_.x = backupX_;
     state_.v = backupV_;
     state_.time = stepStart;
+    status_.time = stepStart;
   }
   totalWork_ += lastWork_;
   totalCollision_ += lastCollision_;

@@ -139,11 +139,11 @@ class ArchiveReader {
     v.resize(static_cast<std::size_t>(count));
     bytes(static_cast<void*>(v.data()), v.size() * sizeof(T));
   }
-  /// A dynamic Eigen array whose shape must be `rows` x `cols` (the Simulation's own); a
-  /// floating-point one must be finite (every array a checkpoint holds is a state or a
-  /// quantity derived from one, and a NaN in it would only surface steps later).
+  /// A dynamic Eigen array whose shape must be `rows` x `cols` (the Simulation's own); with
+  /// `finite`, every entry must be a finite number (an array the next step reads: a NaN in
+  /// it would only surface steps later).
   template <class Derived>
-  void array(Eigen::PlainObjectBase<Derived>& a, Index rows, Index cols, const char* what) {
+  void array(Eigen::PlainObjectBase<Derived>& a, Index rows, Index cols, const char* what, bool finite = false) {
     const auto r = value<std::int64_t>(), c = value<std::int64_t>();
     if (r != rows || c != cols)
       fail(std::string(what) + ": " + std::to_string(r) + " x " + std::to_string(c) + " in the file, " +
@@ -151,11 +151,12 @@ class ArchiveReader {
     a.resize(rows, cols);
     bytes(a.data(), static_cast<std::size_t>(a.size()) * sizeof(typename Derived::Scalar));
     if constexpr (std::is_floating_point_v<typename Derived::Scalar>) {
-      if (!a.allFinite())
+      if (finite && !a.allFinite())
         for (Index j = 0; j < cols; ++j)
           for (Index i = 0; i < rows; ++i)
             if (!std::isfinite(a(i, j)))
-              fail(std::string(what) + ": entry (" + std::to_string(i) + ", " + std::to_string(j) + ") is not finite");
+              fail(std::string(what) + ": entry (" + std::to_string(i) + ", " + std::to_string(j) + ") is " +
+                   (std::isnan(a(i, j)) ? "nan" : "infinite") + ", not a finite number");
     }
   }
   std::string text(const char* what, std::size_t maxSize = 4096) {

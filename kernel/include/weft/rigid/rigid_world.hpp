@@ -78,6 +78,7 @@ struct RigidBodyDesc {
   std::vector<RigidShapeDesc> shapes;  // >= 1 piece
   double density = 1000;               // kg/m^3 (> 0)
   double mass = 0;  // > 0: the body's mass (inertia scaled to match); 0: from density; in [1e-15, 1e15] kg either way
+                    // when dynamic
   Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // body frame axes, world
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();               // of the centre of mass, m/s
@@ -99,7 +100,7 @@ struct RigidBodyDesc {
 enum class RigidTimeOfImpact { Speculative, Rollback };
 const char* rigidTimeOfImpactName(RigidTimeOfImpact mode);
 
-/// A body's mass, given or from its density and volume, must be within these (kg).
+/// A dynamic body's mass, given or from its density and volume, must be within these (kg).
 inline constexpr double kMinBodyMass = 1e-15, kMaxBodyMass = 1e15;
 /// The largest RigidOptions::maxPairs (the pair buffers are reserved up front).
 inline constexpr Index kMaxRigidPairs = Index(1) << 28;
@@ -230,7 +231,7 @@ class RigidWorld {
   void undoStep() { state_ = stepStart(); }
   /// The state at the start of the last step (where the bodies came from).
   const RigidState& stepStart() const { return rollback() ? stepBegin_ : backup_; }
-  /// World pose of piece `p` in state `s` (std::out_of_range for p outside [0, pieceCount())).
+  /// World pose of piece `p` in state `s` (std::invalid_argument for p outside [0, pieceCount())).
   Pose piecePose(Index p, const RigidState& s) const;
   /// Room for `capacity` support contacts (allocates: call before stepping).
   void reserveSupports(Index capacity);
@@ -257,7 +258,7 @@ class RigidWorld {
   const RigidStats& lastStats() const { return last_; }
   const RigidStats& totalStats() const { return total_; }
   /// Position (world) of body b's frame origin, as RigidBodyDesc::position names it (this
-  /// and angularMomentum: std::out_of_range for b outside [0, bodyCount())).
+  /// and angularMomentum: std::invalid_argument for b outside [0, bodyCount())).
   Eigen::Vector3d bodyOrigin(Index b) const;
   /// Kinetic plus gravitational potential energy of the dynamic bodies, J (potential
   /// relative to height 0 along -gravity).

@@ -243,6 +243,7 @@ class Simulation {
   // With contacts or self-collision: the state at the step's start, put back when a chunk
   // after the first fails (the chunks before it were taken).
   Vec3Array<S> backupX_, backupV_;
+  bool rollingBack_ = false;  // restore() is putting back the state before a refused load
   ParticleBodyStats lastCoupling_;
   /// Checkpoints: the fields of the "SIMU" section in order, written by an ArchiveWriter
   /// (Self const) and read by an ArchiveReader with the same code (checkpoint.cpp).
