@@ -297,7 +297,8 @@ TEST(Resume, ACheckpointWithANonFiniteCarryOrMismatchedListsIsRefused) {
 // (its flag is off): the checkpoint of that simulation loads, and a refused file loaded
 // into it puts it back as it was (the state before loading is not refused in turn).
 TEST(Resume, ACheckpointAfterAFailedStepLoadsAndARefusedOneLeavesItAlone) {
-  for (const IntegratorKind kind : {IntegratorKind::VelocityVerlet, IntegratorKind::Rk45, IntegratorKind::ImplicitEuler}) {
+  for (const IntegratorKind kind :
+       {IntegratorKind::VelocityVerlet, IntegratorKind::Rk45, IntegratorKind::ImplicitEuler}) {
     SCOPED_TRACE(integratorName(kind));
     SceneSpec spec = builtinSceneSpec("flag", 8);
     spec.simulation.integrator = kind;
