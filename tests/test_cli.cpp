@@ -291,6 +291,37 @@ TEST(Cli, OptionsOverrideTheScene) {
   EXPECT_EQ(j["effects"], (nlohmann::json{"wind"}));
 }
 
+// Integers are read in base 10 (CLI11 alone would read "010" as octal 8).
+TEST(Cli, IntegersWithLeadingZerosAreDecimal) {
+  const nlohmann::json j = runJson("run rope --size 010 --steps 012 --threads 01");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["particles"], 10);
+  EXPECT_EQ(j["steps"], 12);
+  EXPECT_EQ(j["threads"], 1);
+}
+
+// With the stability check off nothing stops a run that blows up: it does not end "ok".
+TEST(Cli, AStateThatIsNotFiniteWithTheCheckOffIsNotOk) {
+  const std::string path = ::testing::TempDir() + "weft_cli_unchecked.json";
+  {
+    std::ofstream f(path);
+    f << R"({"bodies": [{"type": "cloth_grid", "width": 8, "height": 8}],
+             "integrator": "euler", "dt": 0.05, "steps": 400, "stability": {"enabled": false}})";
+  }
+  const CliRun r = weft("run " + path + " --json", false);
+  EXPECT_EQ(r.exitCode, 3) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.out;
+  EXPECT_EQ(j["status"], "not_finite");
+  EXPECT_EQ(j["state_finite"], false);
+  EXPECT_NE(j["status_message"].get<std::string>().find("stability.enabled = false"), std::string::npos);
+  EXPECT_EQ(j["steps"], 400) << "with the check off every step is taken";
+  // A run that stays finite says so.
+  const nlohmann::json fine = runJson("run rope --size 8 --steps 3");
+  EXPECT_EQ(fine["state_finite"], true);
+  std::filesystem::remove(path);
+}
+
 TEST(Cli, FramesOutWritesOneObjPerFrame) {
   const std::string dir = ::testing::TempDir() + "weft_cli_frames_obj";
   std::filesystem::remove_all(dir);
@@ -367,6 +398,18 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   EXPECT_EQ(unwritable.exitCode, 2);
   EXPECT_NE(unwritable.out.find("checkpoint '/nonexistent-dir/run.wckpt': cannot write"), std::string::npos)
       << unwritable.out;
+  // An existing checkpoint is written over only by the run that continues it: a run started
+  // afresh with the same --checkpoint is refused and leaves the file as it was.
+  const auto bytes = [](const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  const std::string saved = bytes(checkpoint);
+  const CliRun afresh = weft(scene + " --steps 10 --checkpoint " + checkpoint, true);
+  EXPECT_EQ(afresh.exitCode, 2) << afresh.out;
+  EXPECT_NE(afresh.out.find("--checkpoint " + checkpoint + ": the file exists"), std::string::npos) << afresh.out;
+  EXPECT_NE(afresh.out.find("--resume " + checkpoint), std::string::npos) << afresh.out;
+  EXPECT_EQ(bytes(checkpoint), saved);
   // A checkpoint taken at another time step is refused, naming both (the run would count
   // its steps for one and take them at the other).
   const CliRun otherStep = weft(scene + " --dt 0.0123 --resume " + checkpoint, true);
@@ -403,6 +446,15 @@ TEST(Cli, SoakRunsEachSceneOnBothThreadCountsAndChecksIt) {
   EXPECT_NE(far.out.find("| stack | double | 3 |"), std::string::npos) << far.out;
   EXPECT_EQ(weft("soak --seconds 0", true).exitCode, 2);
   EXPECT_EQ(weft("soak --scene no-such-scene", true).exitCode, 2);
+  // A table file that cannot be written is refused before the first run (no row printed);
+  // the check leaves no file behind where it could write.
+  const std::string missing = ::testing::TempDir() + "weft_no_such_dir/table.md";
+  const CliRun unwritable = weft("soak --seconds 0.05 --threads 1 --scene stack --out " + missing, true);
+  EXPECT_EQ(unwritable.exitCode, 2) << unwritable.out;
+  EXPECT_NE(unwritable.out.find("--out " + missing + ": cannot write the file (No such file or directory)"),
+            std::string::npos)
+      << unwritable.out;
+  EXPECT_EQ(unwritable.out.find("| stack"), std::string::npos) << unwritable.out;
 }
 
 TEST(Cli, FramesOutCacheHoldsEveryKthStateOfTheLibraryRun) {
@@ -582,10 +634,13 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"flag --out /proc/self --format gltf", "--out /proc/self --format gltf",
                   "cannot open for writing '/proc/self/run.glb.frames.tmp'"},
         BadOption{"stack --out weft_bad_out --format gltf", "--format gltf", "the scene 'stack' has no particles"},
+        BadOption{"stack --out weft_bad_out", "--out weft_bad_out", "the scene 'stack' has no particles to write"},
         BadOption{"flag --out weft_bad_out --format gltf --resume weft_no.wckpt", "--resume",
                   "cannot append to a glTF file (--format gltf)"},
         BadOption{"flag --out weft_bad_out --every 0", "--every", "0"}, BadOption{"flag --every 2", "--every", "--out"},
         BadOption{"flag --steps -5", "--steps", "must be >= 0, got -5"},
+        BadOption{"flag --steps 0x10", "--steps", "must be a whole number in base 10, got 0x10"},
+        BadOption{"flag --size 0b11", "--size", "must be a whole number in base 10, got 0b11"},
         BadOption{"flag --szie 32", "--szie", "did you mean --size?"},
         BadOption{"flag --time-of-impact later", "--time-of-impact", "later"},
         BadOption{"flag rope", "unexpected argument", "rope"}),

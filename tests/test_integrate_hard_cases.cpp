@@ -130,6 +130,28 @@ TYPED_TEST(HardCase, ZeroRestLengthSprings) {
   }
 }
 
+// Adaptive rk45 with a step shorter than its minimum substep (1e-12 s by default, and
+// 1e-12 in float is a little less): the step is tried whole, not refused after "0 trial
+// substeps"; a controller that must shrink it below the floor still gives up.
+TYPED_TEST(HardCase, AdaptiveRk45TakesAStepShorterThanItsMinimumSubstepWhole) {
+  using S = TypeParam;
+  ModelBuilder<S> b;
+  b.addParticle({0, 0, 0}, 0.01);
+  b.addParticle({0.1, 0, 0}, 0.01);
+  b.addSpring(0, 1, {50, 0.01}, SpringClass::Structural, -1);
+  b.pin(0);
+  const ModelAndState<S> scene = b.build();
+  SimulationOptions options = optionsFor(IntegratorKind::Rk45, 1e-12);
+  options.integration.adaptive = true;
+  const Outcome r = runOnBoth(scene, options, 5);
+  EXPECT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.steps, 5);
+  Simulation<S> sim(ModelAndState<S>{scene.model, scene.state}, options);
+  ASSERT_TRUE(sim.step().ok());
+  EXPECT_EQ(sim.lastWork().substeps, 1);
+  EXPECT_EQ(sim.lastWork().rejectedSubsteps, 0);
+}
+
 TYPED_TEST(HardCase, CoincidentParticlesOfASpringWithRestLength) {
   using S = TypeParam;
   // Two particles at the same point joined by a spring of rest length 0.1: the spring has

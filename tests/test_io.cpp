@@ -86,6 +86,25 @@ TEST(Frames, GridTopologyIsTwoConsistentlyWoundTrianglesPerCell) {
     }
 }
 
+// A scene with a cloth and a rope: the frame holds both, the cloth's triangles and the rope's
+// links as lines (and a link from the rope to the cloth), none of the cloth's own springs.
+TEST(Frames, AClothAndARopeAreBothInTheFrame) {
+  ModelBuilder<double> b;
+  ClothGridSpec grid;
+  grid.width = grid.height = 3;
+  addClothGrid(b, grid);  // particles 0..8, 8 triangles
+  RopeSpec rope;
+  rope.particleCount = 4;
+  rope.origin = {0, -1, 0};
+  addRope(b, rope);                                         // particles 9..12, 3 links
+  b.addSpring(0, 9, {10, 0}, SpringClass::Structural, -1);  // the rope hangs from the cloth
+  const ModelAndState<double> built = b.build();
+  const FrameTopology t = frameTopology(built.model);
+  EXPECT_EQ(t.triangles.size(), 8u);
+  ASSERT_EQ(t.lines.size(), 4u);
+  for (const auto& l : t.lines) EXPECT_TRUE(l[0] >= 9 || l[1] >= 9) << l[0] << " - " << l[1];
+}
+
 TYPED_TEST(FramesTyped, ObjOfAFlagHasEveryVertexAndFaceAndParsesBackExactly) {
   using S = TypeParam;
   const auto [model, state] = movedFlag<S>();

@@ -142,6 +142,10 @@ TEST(PlyReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
   const std::string body = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
   const std::string binaryHead = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n" + xyz + faces;
   ASSERT_EQ(loadMeshFromMemory(head + faces + body, "good.ply").triangles.size(), 1u);
+  const std::string binaryFace("\x03\0\0\0\0\x01\0\0\0\x02\0\0\0", 13);
+  ASSERT_EQ(loadMeshFromMemory(binaryHead + std::string(36, '\0') + binaryFace + "\r\n", "good.ply").triangles.size(),
+            1u)
+      << "a binary file may end in a newline";
   const struct {
     std::string contents, expected;
   } cases[] = {
@@ -179,6 +183,10 @@ TEST(PlyReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
        "PLY face 0 property 'vertex_indices': a list's count must be >= 0, got -3"},
       {head + faces + "0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "PLY file ends before entry 2 of face 0"},
       {head + faces + body + "3 0 1 2\n", "PLY line 14: '3' after the last element the header declares"},
+      // In a binary file too (a trailing newline is allowed: above).
+      {binaryHead + std::string(36, '\0') + binaryFace + binaryFace,
+       "PLY file: 13 bytes after the last element the header declares, from byte " +
+           std::to_string(binaryHead.size() + 49) + " of the file"},
       {"ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "end_header\n" + "0 0 0\n1 0 0\n0 1 0\n",
        "no triangles: the PLY file has 3 vertices and no face element"},
       {head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0\n",

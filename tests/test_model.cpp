@@ -610,7 +610,21 @@ TYPED_TEST(ModelTest, RopesAndGridsThePrecisionCannotHoldAreRefusedBeforeAnythin
   rope.structural.stiffness = std::numeric_limits<double>::infinity();
   EXPECT_NE(refused([&](ModelBuilder<S>& b) { addRope(b, rope); }).find("RopeSpec.structural.stiffness must be finite"),
             std::string::npos);
+  // A spacing whose square underflows: refused for its size, not as parallel axes.
+  rope = {};
+  rope.length = 1e-300;
+  EXPECT_NE(
+      refused([&](ModelBuilder<S>& b) {
+        addRope(b, rope);
+      }).find(std::string("RopeSpec.length / (particleCount - 1) must be at least ") + (single ? "1e-18" : "1e-150")),
+      std::string::npos);
   ClothGridSpec grid = gridSpec(4, 4);
+  grid.spacing = 1e-300;
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) {
+              addClothGrid(b, grid);
+            }).find(std::string("ClothGridSpec.spacing must be at least ") + (single ? "1e-18" : "1e-150") + " m in "),
+            std::string::npos);
+  grid = gridSpec(4, 4);
   grid.shear.damping = single ? 1e39 : -1;
   EXPECT_NE(refused([&](ModelBuilder<S>& b) { addClothGrid(b, grid); }).find("ClothGridSpec.shear.damping must be"),
             std::string::npos);

@@ -376,6 +376,17 @@ TEST(ConvexHull, RejectsDegenerateInput) {
                 makeConvexHull(p);
               }),
               HasSubstr("point 3 has a non-finite coordinate (0, 0, inf)"));
+  // Sizes whose normals would overflow or underflow are refused as such, not as "no volume"
+  // (a unit tetrahedron scaled to 1e200 m or 1e-200 m).
+  const auto tetrahedron = [](double scale) {
+    return std::vector<Vector3d>{{0, 0, 0}, {scale, 0, 0}, {0, scale, 0}, {0, 0, scale}};
+  };
+  EXPECT_EQ(invalidArgumentMessage([&] { makeConvexHull(tetrahedron(1e200)); }),
+            "makeConvexHull: point 1 = (1e+200, 0, 0) must be within +-1e+50 m in each coordinate");
+  EXPECT_EQ(invalidArgumentMessage([&] { makeConvexHull(tetrahedron(1e-200)); }),
+            "makeConvexHull: the points' extent 1e-200 m must be at least 1e-50 m");
+  EXPECT_EQ(makeConvexHull(tetrahedron(1e40)).vertexCount(), 4);
+  EXPECT_EQ(makeConvexHull(tetrahedron(1e-40)).vertexCount(), 4);
   std::mt19937 rng(2);
   std::uniform_real_distribution<double> u(-1, 1);
   const Matrix3d r = randomRotation(rng);

@@ -480,6 +480,50 @@ TEST(ParticleCoupling, MomentumIsExchangedNotMadeOrLost) {
   EXPECT_LT((momentum() - p0).norm(), 1e-9 * p0.norm()) << momentum().transpose() << " vs " << p0.transpose();
 }
 
+TEST(ParticleCoupling, AResponseThatOverstretchesFailsTheStepAndPutsBothPartsBack) {
+  // One spring of rest length 0.1 m from a pinned particle at the origin; a static sphere of
+  // radius 0.5 centred at x = -0.35 holds its free end 0.05 m deep. The particles' own step
+  // is at rest and passes; the coupling pushes the free end out to x = 0.15, 1.5 x the rest
+  // length, past the limit of 1.2: the step fails, and particles and bodies stay as they were.
+  ModelBuilder<double> b;
+  b.addParticle({0, 0, 0}, 0.01);
+  b.addParticle({0.1, 0, 0}, 0.01);
+  b.addSpring(0, 1, {50, 0.01}, SpringClass::Structural, -1);
+  b.pin(0);
+  SimulationOptions options;
+  options.integrator = IntegratorKind::SymplecticEuler;
+  options.dt = 1e-4;
+  options.gravity = {0, 0, 0};
+  options.stability.maxStretch = 1.2;
+  RigidBodyDesc ball;
+  ball.motion = BodyMotion::Static;
+  RigidShapeDesc sphere;
+  sphere.kind = RigidShapeDesc::Kind::Sphere;
+  sphere.radius = 0.5;
+  ball.shapes = {sphere};
+  ball.position = {-0.35, 0, 0};
+  options.rigid.bodies = {ball};
+  Simulation<double> sim(b.build(), options);
+  const std::uint64_t before = stateHash(sim.state()) ^ rigidStateHash(sim.rigidWorld()->state());
+  const StepStatus status = sim.step();
+  EXPECT_EQ(status.code, StepCode::Overstretched) << status.message();
+  EXPECT_GT(sim.lastParticleBodyContacts().contacts, 0);
+  EXPECT_EQ(stateHash(sim.state()) ^ rigidStateHash(sim.rigidWorld()->state()), before);
+  EXPECT_EQ(sim.state().time, 0.0);
+  EXPECT_EQ(status.time, 0.0);
+  EXPECT_EQ(sim.stepCount(), 0);
+  // Without the limit the same step is taken, the end pushed out of the sphere.
+  options.stability.maxStretch = 2;
+  ModelBuilder<double> again;
+  again.addParticle({0, 0, 0}, 0.01);
+  again.addParticle({0.1, 0, 0}, 0.01);
+  again.addSpring(0, 1, {50, 0.01}, SpringClass::Structural, -1);
+  again.pin(0);
+  Simulation<double> loose(again.build(), options);
+  ASSERT_TRUE(loose.step().ok());
+  EXPECT_GT(loose.state().x(1, 0), 0.149);
+}
+
 TEST(ParticleCoupling, BitwiseTheSameOnOneAndTwoThreads) {
   std::uint64_t hashes[2];
   for (int t = 0; t < 2; ++t) {

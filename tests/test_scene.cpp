@@ -811,6 +811,8 @@ const std::vector<BadScene>& badScenes() {
       {"zero_direction", rope(R"(, "direction": [0, 0, 0])"), "bodies[0].direction", "[0,0,0]"},
       {"parallel_axes", grid(R"(, "row_axis": [1, 0, 0], "column_axis": [-2, 0, 0])"), "bodies[0].column_axis",
        "[-2, 0, 0]"},
+      {"tiny_spacing", grid(R"(, "spacing": 1e-300)"), "bodies[0].spacing", "at least 1e-150 m in double"},
+      {"tiny_rope_spacing", rope(R"(, "length": 1e-300)"), "bodies[0].length", "length / (particles - 1) = "},
       {"rope_out_of_reach", rope(R"(, "origin": [1e308, 0, 0], "length": 1e308)"), "bodies[0]", "inf"},
       {"negative_drag", top(R"(, "effects": {"drag": -1})"), "effects.drag", "got -1"},
       {"zero_air_density", top(R"(, "effects": {"wind": {"air_density": 0}})"), "effects.wind.air_density", "got 0"},
@@ -1088,6 +1090,22 @@ TEST(SceneBadFiles, UnreadableSceneFiles) {
   const std::string message = sceneError([&] { readSceneFile(bad); });
   EXPECT_THAT(message, HasSubstr(bad + ": dt: malformed JSON"));
   EXPECT_THAT(message, HasSubstr("line 4, column 1"));
+}
+
+/// weld_tolerance is in the scene's metres, after scale: a unit square in a file scaled by 100
+/// has corners 100 m apart, which a tolerance of 1.5 m does not weld (and 150 m does).
+TEST(SceneMeshes, TheWeldToleranceIsInMetresAfterScale) {
+  const std::string path = writeTemp("square.obj", "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3\nf 1 3 4\n");
+  const auto assembled = [&](double weld) {
+    const SceneSpec spec =
+        parseScene(R"({"bodies": [{"type": "cloth_mesh", "mesh": ")" + path + R"(", "scale": 100, "weld_tolerance": )" +
+                   std::to_string(weld) + R"(}], "dt": 0.001, "steps": 1})");
+    return assembleScene<double>(spec);
+  };
+  const AssembledScene<double> kept = assembled(1.5);
+  EXPECT_EQ(kept.built.model.particleCount(), 4);
+  EXPECT_EQ(kept.built.model.triangleCount(), 2);
+  EXPECT_THAT(sceneError([&] { assembled(150); }), HasSubstr("no triangles after cleaning"));
 }
 
 /// Bad meshes and mesh pins show when the scene is assembled (the reader checks only that

@@ -57,6 +57,32 @@ const CLI::Validator nonNegativeInteger(
     },
     "INTEGER >= 0");
 
+// CLI11 converts integers with strtoll(text, base 0): "010" would be 8 and "0x10" 16. Every
+// integer option is read in base 10: leading zeros are dropped, other prefixes refused.
+const CLI::Validator decimalInteger(
+    [](std::string& text) -> std::string {
+      const std::size_t sign = !text.empty() && (text[0] == '+' || text[0] == '-') ? 1 : 0;
+      std::size_t first = sign;
+      while (first + 1 < text.size() && text[first] == '0') ++first;
+      if (first == sign) return {};
+      for (std::size_t k = first; k < text.size(); ++k)
+        if (text[k] < '0' || text[k] > '9') return "must be a whole number in base 10, got " + text;
+      text = text.substr(0, sign) + text.substr(first);
+      return {};
+    },
+    "", "decimal");
+
+/// Puts decimalInteger in front of the checks of every integer option of `app` and its
+/// subcommands (CLI11 names their type INT or UINT, before the checks' names).
+void readIntegersInBaseTen(CLI::App& app) {
+  for (CLI::Option* option : app.get_options()) {
+    const std::string full = option->get_type_name();  // "INT", or "INT:<the checks' names>"
+    const std::string type = full.substr(0, full.find(':'));
+    if (type == "INT" || type == "UINT") option->transform(decimalInteger);
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) readIntegersInBaseTen(*sub);
+}
+
 std::size_t editDistance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> row(b.size() + 1);
   for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
@@ -387,6 +413,7 @@ int main(int argc, char** argv) {
       ->expected(1, 16);
   soakCmd->add_option("--out", soak.out, "Also write the Markdown table to this file");
 
+  readIntegersInBaseTen(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

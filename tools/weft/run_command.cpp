@@ -56,6 +56,13 @@ std::string gib(double bytes) {
   return text;
 }
 
+/// Whether every body's position, orientation and velocities are finite numbers.
+bool rigidFinite(const weft::RigidState& s) {
+  for (size_t b = 0; b < s.x.size(); ++b)
+    if (!(s.x[b].allFinite() && s.q[b].coeffs().allFinite() && s.v[b].allFinite() && s.w[b].allFinite())) return false;
+  return std::isfinite(s.time);
+}
+
 std::string hex(std::uint64_t h) {
   char buffer[19];
   std::snprintf(buffer, sizeof buffer, "0x%016llx", static_cast<unsigned long long>(h));
@@ -110,6 +117,10 @@ class FrameSink {
       : dir_(o.directory), format_(o.format) {
     if (format_ != "cache") topology_ = weft::frameTopology(model);
     if (format_ == "gltf") checkGltf(o, model, scene, steps);
+    if (model.particleCount() == 0)
+      throw std::invalid_argument("--out " + dir_ + ": the scene '" + scene +
+                                  "' has no particles to write (frames hold particles; rigid bodies are not written "
+                                  "to them: weft render draws them)");
     std::error_code error;
     std::filesystem::create_directories(dir_, error);
     if (error) throw std::runtime_error("cannot create the output directory '" + dir_ + "': " + error.message());
@@ -157,6 +168,11 @@ class FrameSink {
     if (model.particleCount() == 0)
       throw std::invalid_argument("--format gltf: the scene '" + scene +
                                   "' has no particles to write (rigid bodies are not exported to glTF)");
+    if (!topology_.triangles.empty() && !topology_.lines.empty())
+      throw std::invalid_argument("--format gltf: the scene '" + scene + "' has cloth (" +
+                                  std::to_string(topology_.triangles.size()) + " triangles) and ropes (" +
+                                  std::to_string(topology_.lines.size()) +
+                                  " lines): a glTF frame here holds one kind; use --format obj, ply or cache");
     const std::int64_t frames = steps / o.every + 1;
     const std::int64_t most = weft::gltfMaxFrames(model.particleCount(), topology_);
     if (frames > most) {
@@ -360,6 +376,18 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                                std::to_string(sim.stepCount()) + ", beyond the " + std::to_string(steps) +
                                " steps asked for (--steps)");
   }
+  // A checkpoint file that exists holds a run's work: only the run that continues it
+  // (--resume with the same file) writes over it.
+  if (o.checkpoint) {
+    std::error_code error;
+    const bool exists = std::filesystem::exists(*o.checkpoint, error);
+    const bool continued = o.resume && exists && std::filesystem::equivalent(*o.resume, *o.checkpoint, error);
+    if (exists && !continued)
+      throw std::invalid_argument("--checkpoint " + *o.checkpoint +
+                                  ": the file exists, and a checkpoint holds a run's work: continue that run with "
+                                  "--resume " +
+                                  *o.checkpoint + ", or remove the file first");
+  }
   // A first checkpoint before any step: a path that cannot be written fails now, not after
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);
@@ -416,6 +444,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const double springEvals = static_cast<double>(sim.forceEvaluationCount()) * model.springCount();
   const double springEvalsPerSecond = wall > 0 ? springEvals / wall : 0;
   const weft::RigidWorld* rigid = sim.rigidWorld();
+  // With the stability check off (stability.enabled = false) nothing stops a run whose state
+  // became NaN or infinite: such a run does not end "ok".
+  const bool finite = state.x.allFinite() && state.v.allFinite() && (!rigid || rigidFinite(rigid->state()));
+  const std::string notFinite =
+      "the state is not finite (with the stability check off, stability.enabled = false, nothing stopped the run)";
   // With rigid bodies the hash covers them too (equal for any thread count, like the particles').
   const std::string hash =
       hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
@@ -471,6 +504,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["status_message"] = std::string("stopped by ") + signalName(interrupted) + " after step " +
                             std::to_string(done) + " of " + std::to_string(steps);
     if (!status.ok()) j["status_message"] = status.message();
+    if (status.ok() && !interrupted && !finite) {
+      j["status"] = "not_finite";
+      j["status_message"] = notFinite;
+    }
+    j["state_finite"] = finite;
     if (o.checkpoint) j["checkpoint"] = *o.checkpoint;
     if (o.resume) j["resumed_from"] = *o.resume;
     j["state_hash"] = hash;
@@ -609,8 +647,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     out << "  status       "
         << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
                               std::to_string(done) + " of " + std::to_string(steps)
-            : status.ok() ? std::string("ok")
-                          : status.message())
+            : !status.ok() ? status.message()
+            : finite       ? std::string("ok")
+                           : notFinite)
         << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)
@@ -619,11 +658,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (o.checkpoint) out << "  checkpoint   " << *o.checkpoint << "\n";
     if (frames)
       out << "  frames       " << frames->written() << " (" << output.format << ", every " << output.every
-          << " steps) in " << output.directory << "\n";
+          << " steps) in " << output.directory
+          << (rigid ? " (the particles; the rigid bodies are not in the frames: weft render draws them)" : "") << "\n";
     std::cout << out.str();
   }
   if (interrupted) return 128 + interrupted;  // the shell's convention: 130 for SIGINT, 143 for SIGTERM
-  return status.ok() ? 0 : 3;
+  return status.ok() && finite ? 0 : 3;
 }
 
 }  // namespace

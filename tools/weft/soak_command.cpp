@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "output_file.hpp"
 #include "process_memory.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
@@ -103,6 +104,7 @@ int runSoak(const SoakOptions& o) {
     throw std::invalid_argument("--seconds must be finite and > 0, got " + std::to_string(o.seconds));
   if (o.maxSteps < 1) throw std::invalid_argument("--max-steps must be >= 1, got " + std::to_string(o.maxSteps));
   if (o.threads.empty()) throw std::invalid_argument("--threads needs at least one thread count");
+  if (!o.out.empty()) checkOutputFile(o.out, "--out");
   const std::vector<std::string> scenes = o.scenes.empty() ? weft::builtinSceneNames() : o.scenes;
   std::ostringstream table;
   table << "| scene | precision | steps | simulated s | wall s (threads";
@@ -170,11 +172,7 @@ int runSoak(const SoakOptions& o) {
     std::cout << row.str() << std::flush;
     table << row.str();
   }
-  if (!o.out.empty()) {
-    std::ofstream out(o.out);
-    out << table.str();
-    if (!out) throw std::runtime_error("cannot write '" + o.out + "'");
-  }
+  if (!o.out.empty()) writeTextFile(o.out, table.str());
   return allPass ? 0 : 1;
 }
 

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <vector>
 
+#include "output_file.hpp"
 #include "render_scene.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
@@ -113,7 +114,7 @@ int writeIntegratorStrip(const std::string& directory, bool quick) {
   for (const Tile& t : tiles)
     md << "| " << weft::integratorName(t.kind) << " | " << (t.ok ? "ok" : "stopped: " + t.status) << " | " << t.time
        << " | " << t.wallSeconds << " | " << t.energy << " |\n";
-  std::ofstream((std::filesystem::path(directory) / "strip.md").string()) << md.str();
+  writeTextFile((std::filesystem::path(directory) / "strip.md").string(), md.str());
   std::cout << "weft study --strip: " << directory << "/strip.png and strip.md (" << tiles.size() << " integrators)\n";
   return 0;
 }

@@ -35,6 +35,7 @@
 #include <string_view>
 #include <thread>
 
+#include "output_file.hpp"
 #include "ranks.hpp"
 #include "study_schedule.hpp"
 #include "weft/weft.hpp"
@@ -657,22 +658,20 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
   // CSV.
   const fs::path csvPath = fs::path(o.out) / "study.csv";
   {
-    std::ofstream csv(csvPath);
+    // dt, tolerances and the stable steps with every digit: a row reads back as the run it was.
+    std::ostringstream csv;
     csv << "scene,integrator,precision,threads,dt,tolerance,steps,simulated_seconds,error,error_half,energy_drift,"
            "wall_seconds,wall_per_simulated_second,host,force_evaluations,linear_iterations,rejected_substeps,substeps,"
            "stable_dt_measured,stable_dt_estimate,status,bitwise_same_as_first_thread_count\n";
-    csv.precision(9);
+    csv.precision(17);
     for (const Row& r : rows)
       csv << r.scene << ',' << r.integrator << ',' << r.precision << ',' << r.threads << ',' << r.dt << ','
           << r.tolerance << ',' << r.steps << ',' << r.simulated << ',' << fmt(r.error, 9) << ',' << fmt(r.errorHalf, 9)
           << ',' << fmt(r.energyError, 9) << ',' << r.wall << ',' << fmt(r.wallPerSimulated, 9) << ',' << r.host << ','
           << r.forceEvaluations << ',' << r.linearIterations << ',' << r.rejected << ',' << r.substeps << ','
-          << fmt(r.stableMeasured, 9) << ',' << fmt(r.stableEstimate, 9) << ',' << r.status << ','
+          << fmt(r.stableMeasured, 17) << ',' << fmt(r.stableEstimate, 17) << ',' << r.status << ','
           << (r.sameAsOneThread ? 1 : 0) << '\n';
-    if (!csv) {
-      std::cerr << "weft study: could not write " << csvPath << "\n";
-      return 1;
-    }
+    writeTextFile(csvPath.string(), csv.str());
   }
 
   // Markdown: cheapest configuration per scene and error target, then the limits.
@@ -714,7 +713,7 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
   for (const Row& r : rows) allSame = allSame && r.sameAsOneThread;
   md << "\nEvery run's final state bitwise identical across thread counts: " << (allSame ? "yes" : "**no**") << "\n";
   const fs::path mdPath = fs::path(o.out) / "study.md";
-  std::ofstream(mdPath) << md.str();
+  writeTextFile(mdPath.string(), md.str());
   written = true;
   std::cout << md.str();
   std::cout << "\nwrote " << csvPath.string() << " and " << mdPath.string() << " (" << rows.size() << " runs";
@@ -723,15 +722,12 @@ int study(const StudyOptions& o, const Ranks& ranks, bool& written) {
             << " s)\n";
 
   if (!o.schedule.empty()) {
-    std::ofstream out(o.schedule);
+    std::ostringstream out;
     out << "phase,task,estimated_cost,rank,host,wall_seconds\n";
     out.precision(6);
     for (const TaskRecord& t : schedule)
       out << t.phase << ',' << t.name << ',' << t.cost << ',' << t.rank << ',' << t.host << ',' << t.wall << '\n';
-    if (!out) {
-      std::cerr << "weft study: could not write " << o.schedule << "\n";
-      return 1;
-    }
+    writeTextFile(o.schedule, out.str());
   }
   return allSame ? 0 : 1;
 }

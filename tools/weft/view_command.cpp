@@ -19,6 +19,7 @@
 #include <sstream>
 #include <vector>
 
+#include "output_file.hpp"
 #include "render_scene.hpp"
 #include "text_overlay.hpp"
 #include "weft/io/scene.hpp"
@@ -462,6 +463,7 @@ void drawReadout(weftrender::Renderer& renderer, const weftrender::Viewport& vp,
 
 int viewScene(const ViewOptions& o) {
   weft::SceneSpec spec = sceneFor(o.run);
+  if (o.screenshot) checkOutputFile(*o.screenshot, "--screenshot");
   const char* display = std::getenv("DISPLAY");
   const char* wayland = std::getenv("WAYLAND_DISPLAY");
   if ((!display || !*display) && (!wayland || !*wayland)) {

@@ -108,8 +108,11 @@ class Rk45 final : public Integrator<S> {
     double t = 0;
     double hs = proposal_ > 0 ? std::min(proposal_, H) : H;
     bool grew = true;  // growth allowed (false right after a rejection)
+    // A step shorter than minSubstep is tried whole once: the floor is on substeps the error
+    // control shrank, not on the step the caller chose.
+    const double floor = std::min(options_.minSubstep, H);
     for (;;) {
-      if (work.substeps + work.rejectedSubsteps >= options_.maxSubsteps || !(hs >= options_.minSubstep)) {
+      if (work.substeps + work.rejectedSubsteps >= options_.maxSubsteps || !(hs >= floor)) {
         work.failed = true;
         return work;
       }

@@ -113,14 +113,17 @@ template <class S>
 FrameTopology frameTopology(const Model<S>& model) {
   FrameTopology topology;
   const Triangles& tr = model.triangles();
-  if (tr.count() > 0) {
-    topology.triangles.reserve(static_cast<std::size_t>(tr.count()));
-    for (Index t = 0; t < tr.count(); ++t) topology.triangles.push_back({tr.a[t], tr.b[t], tr.c[t]});
-    return topology;
+  std::vector<char> inTriangle(static_cast<std::size_t>(model.particleCount()), 0);
+  topology.triangles.reserve(static_cast<std::size_t>(tr.count()));
+  for (Index t = 0; t < tr.count(); ++t) {
+    topology.triangles.push_back({tr.a[t], tr.b[t], tr.c[t]});
+    inTriangle[tr.a[t]] = inTriangle[tr.b[t]] = inTriangle[tr.c[t]] = 1;
   }
+  // Ropes (and links from a rope to a cloth): the structural springs not inside the triangles.
   const Springs<S>& springs = model.springs();
   for (Index s = 0; s < springs.count(); ++s)
-    if (springs.kind[s] == SpringClass::Structural) topology.lines.push_back({springs.a[s], springs.b[s]});
+    if (springs.kind[s] == SpringClass::Structural && !(inTriangle[springs.a[s]] && inTriangle[springs.b[s]]))
+      topology.lines.push_back({springs.a[s], springs.b[s]});
   return topology;
 }
 

@@ -390,10 +390,19 @@ class PlyBody {
     return 0;
   }
 
-  /// Refuses values left over after the last element of an ASCII file (the header's counts
-  /// are then smaller than the data: reading on would lose them).
+  /// Refuses values left over after the last element (the header's counts are then smaller
+  /// than the data: reading on would lose them). A binary file may end in white space (a
+  /// trailing newline), nothing else.
   void expectEnd() {
-    if (format_ != Format::Ascii) return;
+    if (format_ != Format::Ascii) {
+      size_t extra = pos_;
+      while (extra < body_.size() && isSpace(body_[extra])) ++extra;
+      if (extra < body_.size())
+        refuse("PLY file: " + std::to_string(body_.size() - pos_) + " bytes after the last element the header " +
+               "declares, from byte " + std::to_string(header_ + pos_) +
+               " of the file (its counts are smaller than the data)");
+      return;
+    }
     const std::string_view token = tokens_.next();
     if (!token.empty())
       refuse("PLY line " + std::to_string(tokens_.line()) + ": " + quoted(token) +

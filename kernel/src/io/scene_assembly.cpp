@@ -19,6 +19,18 @@ namespace weft {
 
 using namespace io_detail;  // fmt, finite (json_reader.hpp); pins, requireScalarRange, bodiesText (scene_internal.hpp)
 
+namespace {
+
+/// The cleaning options of a mesh the scene scales by `scale`: the weld tolerance is given in
+/// metres, as the scene's lengths are, and the mesh is cleaned before it is scaled, in its
+/// file's units. (A scale that is not a positive number is refused where it is used.)
+MeshCleanOptions inFileUnits(MeshCleanOptions clean, double scale) {
+  if (std::isfinite(scale) && scale > 0) clean.weldTolerance /= scale;
+  return clean;
+}
+
+}  // namespace
+
 template <class S>
 AssembledScene<S> assembleScene(const SceneSpec& scene) {
   if (scene.bodies.empty() && scene.simulation.rigid.bodies.empty())
@@ -37,7 +49,7 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
     if (b.kind == BodyKind::ClothMesh) {
       MeshReport report;
       try {
-        mesh = loadCleanMesh(b.meshFile, b.clean, &report);  // its messages name the file
+        mesh = loadCleanMesh(b.meshFile, inFileUnits(b.clean, b.mesh.scale), &report);  // its messages name the file
       } catch (const std::exception& e) {
         throw SceneError(field + ".mesh: " + e.what());
       }
@@ -122,8 +134,9 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
       if (!(std::isfinite(m.scale) && m.scale > 0))
         throw std::invalid_argument("scale must be finite and > 0, got " + fmt(m.scale));
       if (!finite(m.translate)) throw std::invalid_argument("translate must be finite, got " + fmt(m.translate));
-      obstacle.mesh = m.meshContents.empty() ? loadCleanMesh(m.meshFile, m.clean, &report)
-                                             : loadCleanMeshFromMemory(m.meshContents, m.meshFile, m.clean, &report);
+      const MeshCleanOptions clean = inFileUnits(m.clean, m.scale);
+      obstacle.mesh = m.meshContents.empty() ? loadCleanMesh(m.meshFile, clean, &report)
+                                             : loadCleanMeshFromMemory(m.meshContents, m.meshFile, clean, &report);
       for (Vec3d& p : obstacle.mesh.vertices) {
         p = {m.scale * p.x + m.translate.x, m.scale * p.y + m.translate.y, m.scale * p.z + m.translate.z};
         if (!finite(p))

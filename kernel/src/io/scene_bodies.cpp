@@ -12,6 +12,7 @@
 #include <string>
 #include <system_error>
 
+#include "model/precision_limits.hpp"
 #include "scene_internal.hpp"
 
 namespace weft::io_detail {
@@ -80,6 +81,19 @@ std::string readMeshFile(const Reader& r, const Json& j, const std::string& f, c
                                       problem);
 }
 
+/// The kernel's shortest spacing between particles (in double; a float scene's tighter limit
+/// is the kernel's, at assembly): `spacing` as laid out, `key` the field, `what` how the
+/// spacing follows from it ("" when it is the field's value).
+void requireSpacing(const Reader& r, const std::string& f, const char* key, double spacing, const std::string& what) {
+  constexpr double shortest = detail::PrecisionLimits<double>::kShortest;
+  if (!(spacing >= shortest))
+    r.fail(Reader::join(f, key), (what.empty() ? std::string() : what + " = " + fmt(spacing) + " m: ") +
+                                     "must be at least " + fmt(shortest) +
+                                     " m in double precision (the squares of spring lengths must stay normal "
+                                     "numbers)" +
+                                     (what.empty() ? ", got " + fmt(spacing) : std::string()));
+}
+
 BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory) {
   if (!j.is_object()) r.fail(f, std::string("must be an object, got ") + typeName(j) + " " + shortDump(j));
   BodySpec b;
@@ -97,6 +111,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     s.origin = r.vector(j, f, "origin", s.origin);
     s.direction = r.direction(j, f, "direction", s.direction);
     s.length = r.number(j, f, "length", s.length, 0, false, " m");
+    requireSpacing(r, f, "length", s.length / static_cast<double>(s.particleCount - 1), "length / (particles - 1)");
     s.totalMass = readMass(r, j, f, s.totalMass, s.particleCount);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
     readMaterials(r, j, f, s.structural, nullptr, s.bend);
@@ -130,6 +145,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
                "must not be parallel to row_axis, got " + fmt(s.columnAxis) + " and row_axis " + fmt(s.rowAxis));
     }
     s.spacing = r.number(j, f, "spacing", 1.0 / (s.width - 1), 0, false, " m");
+    requireSpacing(r, f, "spacing", s.spacing, "");
     s.totalMass = readMass(r, j, f, s.totalMass, s.width * s.height);
     s.shearSprings = r.boolean(j, f, "shear_springs", s.shearSprings);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);

@@ -129,9 +129,12 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
   // With obstacles or self-collision: x and v at the step's start, put back on a failure.
   const double stepBackup =
       scene.simulation.collision.any() || scene.simulation.selfCollision.enabled ? 6.0 * (isFloat ? 4 : 8) : 0.0;
+  // With rigid bodies that particles touch: x and v at the step's start, for the coupling.
+  const double couplingBackup =
+      e.rigidBodies > 0 && scene.simulation.rigid.particleContacts && particles > 0 ? 6.0 * (isFloat ? 4 : 8) : 0.0;
   const double simulation =
-      (r.particle + preconditionerBytesPerParticle(scene.simulation) + stepBackup) * particles + r.spring * springs +
-      kBytesPerTriangle * triangles +
+      (r.particle + preconditionerBytesPerParticle(scene.simulation) + stepBackup + couplingBackup) * particles +
+      r.spring * springs + kBytesPerTriangle * triangles +
       (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
       kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
   e.bytes = std::max(simulation, builderBytes(particles, springs, triangles, isFloat));

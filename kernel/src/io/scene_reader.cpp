@@ -16,6 +16,7 @@
 #include <system_error>
 #include <vector>
 
+#include "model/precision_limits.hpp"
 #include "scene_internal.hpp"
 
 namespace weft {
@@ -88,17 +89,14 @@ namespace io_detail {
 template <class S>
 void requireScalarRange(const SimulationOptions& o,
                         const std::function<void(const std::string&, const std::string&)>& fail) {
-  const double big = static_cast<double>(std::numeric_limits<S>::max());
+  using Limits = detail::PrecisionLimits<S>;  // the kernel's rules (Simulation<S> and ModelBuilder<S>)
   const auto check = [&](const char* field, double value) {
-    if (!(std::abs(value) <= big))
-      fail(field, std::string("must be within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
-                      " precision (|value| <= " + fmt(big) + "), got " + fmt(value));
+    if (!Limits::representable(value))
+      fail(field, std::string("must be within the range of ") + Limits::kName +
+                      " precision (|value| <= " + fmt(Limits::kLargest) + "), got " + fmt(value));
   };
-  // (dt > 0 is the kernel's rule; here, that the model's precision holds it as a normal number.)
-  const double tiny = static_cast<double>(std::numeric_limits<S>::min());
-  if (o.dt > 0 && !(o.dt >= tiny && o.dt <= big))
-    fail("dt", std::string("must be within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
-                   " precision ([" + fmt(tiny) + ", " + fmt(big) + "] s), got " + fmt(o.dt));
+  // (dt > 0 is the kernel's rule read before; here, that the model's precision holds it.)
+  if (o.dt > 0 && !Limits::timeStep(o.dt)) fail("dt", "must be " + Limits::timeStepRule() + ", got " + fmt(o.dt));
   check("gravity[0]", o.gravity.x);
   check("gravity[1]", o.gravity.y);
   check("gravity[2]", o.gravity.z);

@@ -1,11 +1,15 @@
 // kernel/src/model/precision_limits.hpp — what ModelBuilder<S>::build() requires of the values it
 // converts to the precision S, in one place: build() checks them, and the builders that add
 // a whole object (addClothMesh, addRope, addClothGrid) check the values they compute before
-// they add anything, so that an object they accept also builds.
+// they add anything, so that an object they accept also builds. The time step's rule is
+// here too: Simulation<S> and the scene reader check it with the same function.
 #pragma once
 
 #include <cmath>
 #include <limits>
+#include <string>
+
+#include "core/text.hpp"
 
 namespace weft::detail {
 
@@ -19,10 +23,24 @@ struct PrecisionLimits {
   /// (below sqrt(max) / 4).
   static constexpr double kFarthest = sizeof(S) == sizeof(float) ? 1e18 : 1e150;
 
+  /// The shortest spacing between particles a builder lays out: the squares of spring
+  /// lengths stay normal numbers, 1e-18 m in float, 1e-150 m in double (above sqrt(min)).
+  static constexpr double kShortest = sizeof(S) == sizeof(float) ? 1e-18 : 1e-150;
+
   static bool representable(double value) { return std::abs(value) <= kLargest; }
   static bool coordinate(double value) { return std::abs(value) <= kFarthest; }
   /// A mass whose inverse (the integrators' 1/m) is finite in S.
   static bool invertibleMass(double mass) { return mass > 0 && 1.0 / mass <= kLargest; }
+  /// The smallest positive normal number of S.
+  static constexpr double kSmallestNormal = static_cast<double>(std::numeric_limits<S>::min());
+  /// A time step S holds as a normal number (in float, 1e39 s would step by infinity and
+  /// 1e-46 s by 0).
+  static bool timeStep(double dt) { return dt >= kSmallestNormal && dt <= kLargest; }
+  /// What timeStep() requires, as messages say it.
+  static std::string timeStepRule() {
+    return std::string("within the range of ") + kName + " precision ([" + number(kSmallestNormal) + ", " +
+           number(kLargest) + "] s)";
+  }
 };
 
 }  // namespace weft::detail

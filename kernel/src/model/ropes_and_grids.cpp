@@ -58,6 +58,17 @@ void checkPrecision(const std::string& spec, double mass, const Vec3d& from, con
   }
 }
 
+/// A spacing the builder lays particles out at: one whose square is a normal number in S
+/// (a grid at 1e-300 m would have springs of length 0 and directions of 0 / 0).
+template <class S>
+void checkSpacing(const std::string& field, double spacing) {
+  using Limits = detail::PrecisionLimits<S>;
+  if (!(spacing >= Limits::kShortest))
+    detail::rejectField(field, spacing,
+                        "at least " + detail::number(Limits::kShortest) + " m in " + Limits::kName +
+                            " precision (the squares of spring lengths must stay normal numbers)");
+}
+
 Vec3d along(const Vec3d& origin, const Vec3d& d, double t) {
   return {origin.x + t * d.x, origin.y + t * d.y, origin.z + t * d.z};
 }
@@ -84,6 +95,7 @@ void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
   const Index first = builder.particleCount();
   const double step = spec.length / static_cast<double>(n - 1);
   const double m = spec.totalMass / static_cast<double>(n);
+  checkSpacing<S>("RopeSpec.length / (particleCount - 1)", step);
   checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, step * static_cast<double>(n - 1)),
                     {{"structural", &spec.structural}, {"bend", spec.bendSprings ? &spec.bend : nullptr}});
   for (Index i = 0; i < n; ++i) {
@@ -104,6 +116,7 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
   if (spec.height < 2)
     throw std::invalid_argument("ClothGridSpec.height must be >= 2, got " + std::to_string(spec.height));
   requirePositive("ClothGridSpec.spacing", spec.spacing);
+  checkSpacing<S>("ClothGridSpec.spacing", spec.spacing);
   requirePositive("ClothGridSpec.totalMass", spec.totalMass);
   const Vec3d u = normalised(spec.rowAxis, "ClothGridSpec.rowAxis");
   const Vec3d w = normalised(spec.columnAxis, "ClothGridSpec.columnAxis");

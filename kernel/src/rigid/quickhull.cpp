@@ -24,6 +24,12 @@ namespace weft {
 using detail::number;
 using Eigen::Vector3d;
 
+namespace {
+// The sizes a hull can have: a face normal's squared length is the fourth power of the
+// hull's size, finite and normal between these (1e200^4 overflows, 1e-80^4 underflows).
+constexpr double kHullFarthest = 1e50, kHullShortest = 1e-50;
+}  // namespace
+
 ConvexHull makeConvexHull(std::span<const Vector3d> points, double tolerance) {
   const int pointCount = static_cast<int>(points.size());
   if (pointCount < 4)
@@ -33,6 +39,10 @@ ConvexHull makeConvexHull(std::span<const Vector3d> points, double tolerance) {
     if (!p.allFinite())
       throw std::invalid_argument("makeConvexHull: point " + std::to_string(i) + " has a non-finite coordinate (" +
                                   number(p.x()) + ", " + number(p.y()) + ", " + number(p.z()) + ")");
+    if (!(p.cwiseAbs().maxCoeff() <= kHullFarthest))
+      throw std::invalid_argument("makeConvexHull: point " + std::to_string(i) + " = (" + number(p.x()) + ", " +
+                                  number(p.y()) + ", " + number(p.z()) + ") must be within +-" + number(kHullFarthest) +
+                                  " m in each coordinate");
   }
   if (std::isnan(tolerance) || std::isinf(tolerance))
     throw std::invalid_argument("makeConvexHull: tolerance must be finite, got " + number(tolerance));
@@ -53,6 +63,9 @@ ConvexHull makeConvexHull(std::span<const Vector3d> points, double tolerance) {
                                  " of " + what + ")");
   };
   if (!(extent > 0)) throw std::invalid_argument("makeConvexHull: points span no volume (all coincident)");
+  if (extent < kHullShortest)  // (its normals' squared lengths, extent^4, would underflow)
+    throw std::invalid_argument("makeConvexHull: the points' extent " + number(extent) + " m must be at least " +
+                                number(kHullShortest) + " m");
   std::vector<Vector3d> local(points.begin(), points.end());
   for (Vector3d& p : local) p -= centre;
 

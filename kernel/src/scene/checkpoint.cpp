@@ -28,6 +28,7 @@
 
 #include "collide/self_collider.hpp"
 #include "core/text.hpp"
+#include "model/precision_limits.hpp"
 #include "weft/scene/simulation.hpp"
 
 #ifndef WEFT_VERSION_STRING
@@ -188,9 +189,9 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
         in.fail("kinematic pin origin " + std::to_string(k) + " is not finite");
       tracks_[k].reference = o;
     }
-    if (!(std::isfinite(options_.dt) && options_.dt >= static_cast<double>(std::numeric_limits<S>::min()) &&
-          options_.dt <= static_cast<double>(std::numeric_limits<S>::max())))
-      in.fail("the time step " + detail::number(options_.dt) + " s is not > 0 within the model's precision");
+    if (!detail::PrecisionLimits<S>::timeStep(options_.dt))
+      in.fail("the time step " + detail::number(options_.dt) + " s is not " +
+              detail::PrecisionLimits<S>::timeStepRule());
     if (!std::isfinite(state_.time) || !std::isfinite(clockStart_)) in.fail("the time is not finite");
     if (stepCount_ < 0) in.fail("a negative step count, " + std::to_string(stepCount_));
     const int code = static_cast<int>(status_.code);

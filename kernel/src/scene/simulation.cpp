@@ -13,6 +13,7 @@
 #include "collide/contact_solver.hpp"
 #include "collide/self_collider.hpp"
 #include "core/text.hpp"
+#include "model/precision_limits.hpp"
 #include "rigid/particle_contacts.hpp"
 
 namespace weft {
@@ -40,12 +41,8 @@ double norm(const Vec3d& a) { return std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z
 /// infinity and 1e-46 by 0).
 template <class S>
 double requireStep(double dt, const char* field) {
-  const double tiny = static_cast<double>(std::numeric_limits<S>::min()),
-               big = static_cast<double>(std::numeric_limits<S>::max());
-  if (!(dt >= tiny && dt <= big))
-    detail::rejectField(field, dt,
-                        std::string("within the range of ") + (sizeof(S) == sizeof(float) ? "float" : "double") +
-                            " precision ([" + detail::number(tiny) + ", " + detail::number(big) + "] s)");
+  if (!detail::PrecisionLimits<S>::timeStep(dt))
+    detail::rejectField(field, dt, detail::PrecisionLimits<S>::timeStepRule());
   return dt;
 }
 
@@ -136,6 +133,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
                                                             options_.rigid.particleThickness);
       rigid_->reserveSupports(model_->particleCount() * ParticleBodyContacts<S>::kContactsPerParticle);
       stepStartX_.resize(model_->particleCount(), 3);
+      stepStartV_.resize(model_->particleCount(), 3);
     }
   }
 }
@@ -290,7 +288,11 @@ StepStatus Simulation<S>::step() {
     status_ = bodies;
     return status_;
   }
-  if (coupling_) stepStartX_ = state_.x;  // same size: a copy, no allocation
+  if (coupling_) {  // same sizes: copies, no allocation
+    stepStartX_ = state_.x;
+    stepStartV_ = state_.v;
+  }
+  const double stepStart = state_.time;
   const StepStatus particles = stepParticles();
   if (!particles.ok()) {
     rigid_->undoStep();
@@ -303,10 +305,26 @@ StepStatus Simulation<S>::step() {
     executor_->run([&] {
       lastCoupling_ = coupling_->resolve(stepStartX_, state_.x, state_.v, model_->inverseMass(), *rigid_, *executor_);
     });
-    if (lastCoupling_.contacts > 0) integrator_->reset();  // the state changed after the integrator saw it
+    StepStatus after;
+    if (lastCoupling_.contacts > 0) {
+      integrator_->reset();  // the state changed after the integrator saw it
+      // The coupling moved particles after their step was checked: what it made is checked
+      // too, and a failure puts both parts back where the step found them.
+      executor_->run([&] { after = stability_.check(state_.x, state_.v, *executor_); });
+    }
     if (options_.profileEffects)
       rigidSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - couplingStart).count() *
                        executor_->threadCount();
+    if (!after.ok()) {
+      state_.x = stepStartX_;
+      state_.v = stepStartV_;
+      state_.time = stepStart;
+      --stepCount_;
+      rigid_->undoStep();  // (the reactions the coupling gave the bodies with it)
+      status_ = after;
+      status_.time = stepStart;
+      return status_;
+    }
   }
   return particles;
 }
@@ -339,8 +357,6 @@ StepStatus Simulation<S>::stepWithContacts() {
   lastWork_ = StepWork{};
   lastCollision_ = CollisionStats{};
   lastSelf_ = SelfCollisionStats{};
-  backupX_ = state_.x;  // (same sizes: copies, no allocation)
-  backupV_ = state_.v;
   bool ok = true;
   while (done < total) {
     const std::int64_t ticks = std::min(total >> halvings, total - done);
@@ -389,6 +405,16 @@ StepStatus Simulation<S>::stepWithContacts() {
         ok = false;
         break;
       }
+    }
+    if (done == 0 && ticks < total) {
+      // The first chunk taken of a step in several: keep the state as the step found it, to
+      // put back if a later chunk fails (a step in one chunk never needs it). Kinematic
+      // particles are where a failed chunk leaves them: on their path, with the velocity
+      // they had before the step.
+      backupX_ = state_.x;  // (same sizes: copies, no allocation)
+      backupV_ = state_.v;
+      for (size_t k = 0; k < tracks_.size(); ++k)
+        for (int c = 0; c < 3; ++c) backupV_(tracks_[k].particle, c) = trackVelocity_(static_cast<Index>(k), c);
     }
     acceptChunk(h);
     done += ticks;

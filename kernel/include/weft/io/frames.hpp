@@ -61,7 +61,8 @@ struct FrameTopology {
   std::vector<std::array<Index, 2>> lines;
 };
 
-/// The model's triangles (cloth); the Structural springs as lines when it has none.
+/// The model's triangles (cloth), and as lines the Structural springs with an end in no
+/// triangle (ropes, and links from a rope to a cloth).
 template <class S>
 FrameTopology frameTopology(const Model<S>& model);
 

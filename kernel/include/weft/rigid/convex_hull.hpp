@@ -62,8 +62,9 @@ struct ConvexHull {
 /// Convex hull of `points` (quickhull; visibility decided exactly with Shewchuk's orient3d,
 /// so every intermediate hull is convex). Hull vertices keep the input order; every input
 /// point ends within about 1.5 x tolerance of the faces. Throws std::invalid_argument for fewer than four
-/// points, non-finite coordinates, or points that span no volume (all within tolerance of
-/// a plane). tolerance <= 0: a relative default (1e-9 x the points' extent).
+/// points, non-finite coordinates or coordinates beyond +-1e50 m, an extent below 1e-50 m, or
+/// points that span no volume (all within tolerance of a plane). tolerance <= 0: a relative
+/// default (1e-9 x the points' extent).
 ConvexHull makeConvexHull(std::span<const Eigen::Vector3d> points, double tolerance = 0);
 
 /// A box centred at the origin with the given half extents (each finite and > 0): 8

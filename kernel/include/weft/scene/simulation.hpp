@@ -239,7 +239,8 @@ class Simulation {
   StepStatus stepParticles();
   std::unique_ptr<RigidWorld> rigid_;                  // null without rigid bodies
   std::unique_ptr<ParticleBodyContacts<S>> coupling_;  // null unless particles and bodies meet
-  Vec3Array<S> stepStartX_;                            // (n x 3) positions at the step's start, m (coupling only)
+  Vec3Array<S> stepStartX_, stepStartV_;               // (n x 3) x and v at the step's start (coupling only): put back
+                                                       // when what the coupling made fails the stability check
   // With contacts or self-collision: the state at the step's start, put back when a chunk
   // after the first fails (the chunks before it were taken).
   Vec3Array<S> backupX_, backupV_;
