@@ -326,9 +326,10 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // Memory asked for before it is taken: what this process holds now plus what the scene
   // will, against what the machine has (or --max-memory).
   // Besides the scene's arrays, the first step's runtime (TBB's arena and threads, the
-  // allocator's arenas: about 1.5 MB resident) and, when a mesh is read, assimp's importers
-  // (about 17 MB of its code and tables become resident), both measured on the built-in
-  // scenes (rope, drape-mesh).
+  // allocator's arenas: about 1.5 MB resident) and, when assimp reads a mesh (formats other
+  // than PLY, STL and OBJ), its importers (about 17 MB of its code and tables become
+  // resident), both measured on the built-in scenes (rope, and drape-mesh when assimp read
+  // its OBJ torus).
   const weft::MemoryEstimate need = weft::estimateSceneMemory(spec);
   constexpr double kRuntimeBytes = 1.5 * 1024 * 1024, kMeshImportBytes = 17.0 * 1024 * 1024;
   const double estimate = residentBytes() + kRuntimeBytes + (need.readsMeshes ? kMeshImportBytes : 0) + need.bytes;

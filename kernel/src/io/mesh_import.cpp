@@ -7,9 +7,11 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <array>
 #include <assimp/IOStream.hpp>
 #include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -75,8 +77,8 @@ class WeftLoader final : public Assimp::BaseImporter {
   /// The message of the last file this loader refused ("" if none).
   const std::string& error() const { return error_; }
 
-  /// By extension only: a PLY or STL file under another name gets its format's hint from
-  /// sniffedHint before assimp sees it, so asking the bytes again here would repeat that.
+  /// By extension only. (loadMesh hands PLY and STL files to weft's readers itself, also
+  /// under another name; this loader only keeps assimp's own readers for them out.)
   bool CanRead(const std::string& file, Assimp::IOSystem* /*io*/, bool /*checkSig*/) const override {
     return SimpleExtensionCheck(file, extension_);
   }
@@ -120,8 +122,14 @@ class WeftLoader final : public Assimp::BaseImporter {
       ++scene.mRootNode->mNumMeshes;
       out->mVertices = new aiVector3D[in.vertexCount()];
       out->mNumVertices = static_cast<unsigned>(in.vertexCount());
+      const auto single = [](double x) {  // beyond float's range as an infinity, not undefined behaviour
+        constexpr double kMax = std::numeric_limits<float>::max();
+        return x > kMax    ? std::numeric_limits<float>::infinity()
+               : x < -kMax ? -std::numeric_limits<float>::infinity()
+                           : static_cast<float>(x);
+      };
       for (size_t v = 0; v < in.vertexCount(); ++v)
-        out->mVertices[v] = aiVector3D(in.xyz[3 * v], in.xyz[3 * v + 1], in.xyz[3 * v + 2]);
+        out->mVertices[v] = aiVector3D(single(in.xyz[3 * v]), single(in.xyz[3 * v + 1]), single(in.xyz[3 * v + 2]));
       out->mFaces = new aiFace[in.faceSizes.size()];
       out->mNumFaces = static_cast<unsigned>(in.faceSizes.size());
       size_t next = 0;
@@ -172,26 +180,82 @@ struct Importer {
   }
 };
 
-/// The format hint for a file whose name's extension assimp does not know (or that has
-/// none) but whose first bytes say PLY or STL: "ply" or "stl", so that weft's reader reads
-/// it (assimp would otherwise ask its other loaders first, in its own order, whether the
-/// bytes are theirs); "" otherwise, and for every name with a known extension.
-std::string sniffedHint(const Importer& importer, const std::string& name, std::string_view head, std::uint64_t size) {
-  const std::string extension = std::filesystem::path(name).extension().string();
-  if (!extension.empty() && importer.assimp.IsExtensionSupported(extension)) return {};
-  if (io_detail::startsLikePly(head)) return "ply";
-  if (io_detail::looksLikeStl(head, size)) return "stl";
-  return {};
+// No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded. No
+// aiProcess_Triangulate: assimp 5.2's folds concave polygons; weft triangulates them itself
+// (io_detail::triangulatePolygon).
+constexpr unsigned kImportFlags = aiProcess_PreTransformVertices;
+
+/// What a file held beside its triangles and polygons.
+struct Ignored {
+  std::uint64_t points = 0, lines = 0, emptyFaces = 0;
+};
+
+void checkTriangleRoom(const TriangleMesh& mesh, size_t more, const std::string& path) {
+  constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
+  if (more > kMaxIndex - mesh.triangles.size()) fail(path, "more than " + std::to_string(kMaxIndex) + " triangles");
 }
 
-// No aiProcess_JoinIdenticalVertices: cleanMesh welds, and reports how many it welded.
-constexpr unsigned kImportFlags = aiProcess_Triangulate | aiProcess_PreTransformVertices;
+/// The triangles of weft's own readers' polygons, the vertices in the file's order and in
+/// double; points and lines counted in *ignored.
+TriangleMesh trianglesOf(std::vector<io_detail::PolygonMesh> meshes, const std::string& path, Ignored* ignored) {
+  constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
+  TriangleMesh mesh;
+  Ignored found;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  for (io_detail::PolygonMesh& in : meshes) {
+    const size_t base = mesh.vertices.size();
+    if (in.vertexCount() > kMaxIndex - base) fail(path, "more than " + std::to_string(kMaxIndex) + " vertices");
+    for (size_t v = 0; v < in.vertexCount(); ++v)
+      mesh.vertices.push_back({in.xyz[3 * v], in.xyz[3 * v + 1], in.xyz[3 * v + 2]});
+    found.points += in.points;
+    found.lines += in.lines;
+    found.emptyFaces += in.emptyFaces;
+    size_t next = 0;
+    for (const std::uint32_t size : in.faceSizes) {
+      if (size == 1) ++found.points;
+      if (size == 2) ++found.lines;
+      triangles.clear();
+      io_detail::triangulatePolygon(in.xyz, in.indices.data() + next, size, triangles);
+      next += size;
+      checkTriangleRoom(mesh, triangles.size(), path);
+      for (const auto& t : triangles)
+        mesh.triangles.push_back(
+            {static_cast<Index>(base + t[0]), static_cast<Index>(base + t[1]), static_cast<Index>(base + t[2])});
+    }
+    in = {};  // each mesh's polygons are let go as soon as its triangles are made
+  }
+  if (mesh.triangles.empty())
+    fail(path, "no triangles: the file has " + counted(found.points, "point", "points") + ", " +
+                   counted(found.lines, "line", "lines") + " and " +
+                   counted(mesh.vertices.size(), "vertex", "vertices"));
+  if (ignored != nullptr) *ignored = found;
+  return mesh;
+}
+
+/// weft's own reader for a file named `name` with first bytes `head` of `size` bytes: by
+/// extension (ply, stl, obj), or for a name assimp does not know by the bytes (PLY, STL);
+/// null for the formats assimp reads.
+WeftLoader::Read ownReader(const std::string& name, std::string_view head, std::uint64_t size) {
+  std::string extension = std::filesystem::path(name).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".ply") return io_detail::readPly;
+  if (extension == ".stl") return io_detail::readStl;
+  if (extension == ".obj") return io_detail::readObj;
+  Assimp::Importer probe;
+  if (!extension.empty() && probe.IsExtensionSupported(extension)) return nullptr;
+  if (io_detail::startsLikePly(head)) return io_detail::readPly;
+  if (io_detail::looksLikeStl(head, size)) return io_detail::readStl;
+  return nullptr;
+}
 
 /// Every triangle of an imported scene; `path` names the source in messages.
-TriangleMesh collectTriangles(const aiScene* scene, const std::string& path) {
+TriangleMesh collectTriangles(const aiScene* scene, const std::string& path, Ignored* ignored) {
   constexpr size_t kMaxIndex = static_cast<size_t>(std::numeric_limits<Index>::max());
   TriangleMesh mesh;
   size_t points = 0, lines = 0, polygons = 0;
+  std::vector<double> xyz;  // a mesh's vertices, for triangulatePolygon
+  std::vector<std::uint32_t> corners;
+  std::vector<std::array<std::uint32_t, 3>> cut;
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
     const aiMesh* in = scene->mMeshes[m];
     const size_t base = mesh.vertices.size();
@@ -204,24 +268,40 @@ TriangleMesh collectTriangles(const aiScene* scene, const std::string& path) {
     for (unsigned v = 0; v < in->mNumVertices; ++v)
       mesh.vertices.push_back({static_cast<double>(in->mVertices[v].x), static_cast<double>(in->mVertices[v].y),
                                static_cast<double>(in->mVertices[v].z)});
+    xyz.clear();
     for (unsigned f = 0; f < in->mNumFaces; ++f) {
       const aiFace& face = in->mFaces[f];
       if (face.mNumIndices == 1) ++points;
       if (face.mNumIndices == 2) ++lines;
-      if (face.mNumIndices > 3) ++polygons;  // not after aiProcess_Triangulate; counted for the message
-      if (face.mNumIndices != 3) continue;
-      if (mesh.triangles.size() >= kMaxIndex) fail(path, "more than " + std::to_string(kMaxIndex) + " triangles");
-      std::array<Index, 3> tri;
-      for (int k = 0; k < 3; ++k) {
+      if (face.mNumIndices > 3) ++polygons;
+      if (face.mNumIndices < 3) continue;
+      corners.clear();
+      for (unsigned k = 0; k < face.mNumIndices; ++k) {
         const unsigned index = face.mIndices[k];
         if (index >= in->mNumVertices)
           fail(path, "mesh " + std::to_string(m) + " face " + std::to_string(f) + " corner " + std::to_string(k) +
                          ": vertex index must be < " + std::to_string(in->mNumVertices) + ", got " +
                          std::to_string(index));
-        tri[k] = static_cast<Index>(base + index);
+        corners.push_back(index);
       }
-      mesh.triangles.push_back(tri);
+      if (face.mNumIndices > 3 && xyz.empty())
+        for (unsigned v = 0; v < in->mNumVertices; ++v)
+          xyz.insert(xyz.end(), {static_cast<double>(in->mVertices[v].x), static_cast<double>(in->mVertices[v].y),
+                                 static_cast<double>(in->mVertices[v].z)});
+      cut.clear();
+      if (face.mNumIndices == 3)
+        cut.push_back({corners[0], corners[1], corners[2]});
+      else
+        io_detail::triangulatePolygon(xyz, corners.data(), face.mNumIndices, cut);
+      checkTriangleRoom(mesh, cut.size(), path);
+      for (const auto& t : cut)
+        mesh.triangles.push_back(
+            {static_cast<Index>(base + t[0]), static_cast<Index>(base + t[1]), static_cast<Index>(base + t[2])});
     }
+  }
+  if (ignored != nullptr) {
+    ignored->points = points;
+    ignored->lines = lines;
   }
   if (mesh.triangles.empty()) {
     std::string found = counted(scene->mNumMeshes, "mesh", "meshes") + " with " + counted(points, "point", "points") +
@@ -318,48 +398,88 @@ void checkCleanOptions(const MeshCleanOptions& options) {
                                 io_detail::fmt(options.weldTolerance));
 }
 
-}  // namespace
-
-TriangleMesh loadMesh(const std::string& path) {
+/// loadMesh, with what the file held beside its faces in *ignored.
+TriangleMesh loadCounted(const std::string& path, Ignored* ignored) {
   checkReadable(path);
-  Importer importer;
+  std::string contents;
   {
-    // A PLY or STL file under another name is read from memory with its format's hint.
     std::ifstream in(path, std::ios::binary);
     char head[256];
     in.read(head, sizeof head);
-    const std::string hint = sniffedHint(importer, path, std::string_view(head, static_cast<size_t>(in.gcount())),
-                                         static_cast<std::uint64_t>(std::filesystem::file_size(path)));
-    if (!hint.empty()) {
-      in.clear();  // a file shorter than the head read above has its end-of-file state set
-      in.seekg(0);
-      const std::string contents((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-      const aiScene* raw = importer.assimp.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
-      return collectTriangles(postProcessed(importer, raw, path), path);
+    const std::uint64_t size = static_cast<std::uint64_t>(std::filesystem::file_size(path));
+    const WeftLoader::Read read = ownReader(path, std::string_view(head, static_cast<size_t>(in.gcount())), size);
+    if (read == nullptr) {
+      Importer importer;
+      return collectTriangles(postProcessed(importer, importer.assimp.ReadFile(path, 0), path), path, ignored);
+    }
+    in.clear();  // a file shorter than the head read above has its end-of-file state set
+    in.seekg(0);
+    contents.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (!in.good() && !in.eof()) fail(path, std::string("cannot read: ") + std::strerror(errno));
+    try {
+      std::vector<io_detail::PolygonMesh> meshes = read(contents);
+      std::string().swap(contents);  // the bytes are let go before the triangles are made
+      return trianglesOf(std::move(meshes), path, ignored);
+    } catch (const std::runtime_error& e) {
+      if (std::string_view(e.what()).rfind("mesh file '", 0) == 0) throw;
+      fail(path, e.what());
     }
   }
-  return collectTriangles(postProcessed(importer, importer.assimp.ReadFile(path, 0), path), path);
 }
 
-TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
+/// loadMeshFromMemory, with what the file held beside its faces in *ignored.
+TriangleMesh loadCountedFromMemory(const std::string& contents, const std::string& name, Ignored* ignored) {
   if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
+  const WeftLoader::Read read = ownReader(name, std::string_view(contents).substr(0, 256), contents.size());
+  if (read != nullptr) {
+    std::vector<io_detail::PolygonMesh> meshes;
+    try {
+      meshes = read(contents);
+    } catch (const std::runtime_error& e) {
+      fail(name, e.what());
+    }
+    return trianglesOf(std::move(meshes), name, ignored);
+  }
   Importer importer;
   const std::string extension = std::filesystem::path(name).extension().string();
-  std::string hint = sniffedHint(importer, name, std::string_view(contents).substr(0, 256), contents.size());
-  if (hint.empty() && !extension.empty()) hint = extension.substr(1);
+  const std::string hint = extension.empty() ? std::string() : extension.substr(1);
   const aiScene* raw = importer.assimp.ReadFileFromMemory(contents.data(), contents.size(), 0, hint.c_str());
-  return collectTriangles(postProcessed(importer, raw, name), name);
+  return collectTriangles(postProcessed(importer, raw, name), name, ignored);
+}
+
+/// The cleaned mesh, the counts of what the file held beside its faces added to *report.
+TriangleMesh cleanedWithIgnored(const TriangleMesh& raw, const std::string& path, const MeshCleanOptions& options,
+                                MeshReport* report, const Ignored& ignored) {
+  TriangleMesh out = cleaned(raw, path, options, report);
+  if (report != nullptr) {
+    report->ignoredPoints = static_cast<std::int64_t>(ignored.points);
+    report->ignoredLines = static_cast<std::int64_t>(ignored.lines);
+    report->emptyFaces = static_cast<std::int64_t>(ignored.emptyFaces);
+  }
+  return out;
+}
+
+}  // namespace
+
+TriangleMesh loadMesh(const std::string& path) { return loadCounted(path, nullptr); }
+
+TriangleMesh loadMeshFromMemory(const std::string& contents, const std::string& name) {
+  return loadCountedFromMemory(contents, name, nullptr);
 }
 
 TriangleMesh loadCleanMeshFromMemory(const std::string& contents, const std::string& name,
                                      const MeshCleanOptions& options, MeshReport* report) {
   checkCleanOptions(options);
-  return cleaned(loadMeshFromMemory(contents, name), name, options, report);
+  Ignored ignored;
+  const TriangleMesh raw = loadCountedFromMemory(contents, name, &ignored);
+  return cleanedWithIgnored(raw, name, options, report, ignored);
 }
 
 TriangleMesh loadCleanMesh(const std::string& path, const MeshCleanOptions& options, MeshReport* report) {
   checkCleanOptions(options);
-  return cleaned(loadMesh(path), path, options, report);
+  Ignored ignored;
+  const TriangleMesh raw = loadCounted(path, &ignored);
+  return cleanedWithIgnored(raw, path, options, report, ignored);
 }
 
 }  // namespace weft

@@ -31,13 +31,17 @@ bool equalsIgnoringCase(std::string_view a, std::string_view b) {
 /// `text` quoted for a message: at most 40 bytes, those that are not printable as \xNN.
 std::string quoted(std::string_view text) { return "'" + detail::escaped(text, 40) + "'"; }
 
-/// `v` in single precision (assimp's ai_real), beyond its range as an infinity (which the
-/// mesh cleaning then refuses, naming the vertex), not as undefined behaviour.
-float toFloat(double v) {
+std::string counted(std::uint64_t n, const char* one, const char* many) {
+  return std::to_string(n) + " " + (n == 1 ? one : many);
+}
+
+/// `v` rounded to float, as a PLY `property float` declares it: beyond float's range an
+/// infinity (which the mesh cleaning refuses, naming the vertex), not undefined behaviour.
+double asDeclaredFloat(double v) {
   constexpr double kMax = std::numeric_limits<float>::max();
-  if (v > kMax) return std::numeric_limits<float>::infinity();
-  if (v < -kMax) return -std::numeric_limits<float>::infinity();
-  return static_cast<float>(v);
+  if (v > kMax) return std::numeric_limits<double>::infinity();
+  if (v < -kMax) return -std::numeric_limits<double>::infinity();
+  return static_cast<double>(static_cast<float>(v));
 }
 
 bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
@@ -462,7 +466,8 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
         const Property& property = element.properties[p];
         const auto what = [&] { return element.name + " " + std::to_string(i) + " property '" + property.name + "'"; };
         if (!property.list) {
-          const double v = reader.value(property.type, what);
+          double v = reader.value(property.type, what);
+          if (property.type == Type::F32) v = asDeclaredFloat(v);  // (an ASCII value as the header declares it)
           if (vertices)
             for (int axis = 0; axis < 3; ++axis)
               if (layout.xyz[axis] == static_cast<int>(p)) position[axis] = v;
@@ -494,10 +499,11 @@ std::vector<PolygonMesh> readPly(std::string_view bytes) {
         }
       }
       if (vertices)
-        for (const double v : position) mesh.xyz.push_back(toFloat(v));
+        for (const double v : position) mesh.xyz.push_back(v);
     }
   }
   reader.expectEnd();
+  mesh.emptyFaces = droppedFaces;
   if (mesh.faceSizes.empty())
     refuse("no triangles: the PLY file has " + std::to_string(vertexCount) + " vertices and " +
            (layout.faceElement < 0 ? std::string("no face element")
@@ -548,7 +554,9 @@ std::vector<PolygonMesh> readBinaryStl(std::string_view bytes) {
   mesh.indices.resize(3 * static_cast<size_t>(count));
   for (std::uint32_t f = 0; f < count; ++f) {
     // 12 floats: the normal (not used), then the three corners; then 2 attribute bytes.
-    std::memcpy(&mesh.xyz[9 * static_cast<size_t>(f)], bytes.data() + kStlHeader + kStlFacet * f + 12, 36);
+    float corners[9];
+    std::memcpy(corners, bytes.data() + kStlHeader + kStlFacet * f + 12, 36);
+    for (int k = 0; k < 9; ++k) mesh.xyz[9 * static_cast<size_t>(f) + static_cast<size_t>(k)] = corners[k];
     for (std::uint32_t k = 0; k < 3; ++k) mesh.indices[3 * static_cast<size_t>(f) + k] = 3 * f + k;
   }
   std::vector<PolygonMesh> meshes;
@@ -595,8 +603,7 @@ std::vector<PolygonMesh> readAsciiStl(std::string_view bytes) {
       const std::uint32_t first = static_cast<std::uint32_t>(mesh.vertexCount());
       for (int k = 0; k < 3; ++k) {
         expect("vertex");
-        for (const char* axis : {"a vertex's x", "a vertex's y", "a vertex's z"})
-          mesh.xyz.push_back(toFloat(number(axis)));
+        for (const char* axis : {"a vertex's x", "a vertex's y", "a vertex's z"}) mesh.xyz.push_back(number(axis));
       }
       token = tokens.next();
       if (equalsIgnoringCase(token, "vertex"))
@@ -636,6 +643,200 @@ std::vector<PolygonMesh> readStl(std::string_view bytes) {
   }
   refuse("not an STL file: it does not start with 'solid' (ASCII) and is shorter than a binary STL's 84-byte header (" +
          std::to_string(bytes.size()) + " bytes)");
+}
+
+// ---------------------------------------------------------------------------------------
+// OBJ
+
+std::vector<PolygonMesh> readObj(std::string_view bytes) {
+  PolygonMesh mesh;
+  constexpr std::uint64_t kMaxVertices = static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max());
+  // The largest positive index used, checked against the vertex count at the end (a face may
+  // name a vertex the file lists after it), with where it was.
+  std::int64_t largest = 0, largestLine = 0;
+  std::int64_t lineNumber = 0;
+  std::string logical;  // a line with its continuations ("\" at the end) joined
+  size_t pos = 0;
+  std::vector<std::string_view> tokens;
+  while (pos < bytes.size()) {
+    // The next logical line.
+    logical.clear();
+    const std::int64_t firstLine = lineNumber + 1;
+    for (;;) {
+      const size_t end = std::min(bytes.find('\n', pos), bytes.size());
+      std::string_view line = bytes.substr(pos, end - pos);
+      pos = end + 1;
+      ++lineNumber;
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      const bool continued = !line.empty() && line.back() == '\\';
+      if (continued) line.remove_suffix(1);
+      logical.append(line);
+      if (!continued || pos >= bytes.size()) break;
+      logical.push_back(' ');
+    }
+    std::string_view text = logical;
+    const size_t comment = text.find('#');
+    if (comment != std::string_view::npos) text = text.substr(0, comment);
+    tokens.clear();
+    for (size_t k = 0; k < text.size();) {
+      while (k < text.size() && isSpace(text[k])) ++k;
+      const size_t start = k;
+      while (k < text.size() && !isSpace(text[k])) ++k;
+      if (k > start) tokens.push_back(text.substr(start, k - start));
+    }
+    if (tokens.empty()) continue;
+    const std::string at = "OBJ line " + std::to_string(firstLine) + ": ";
+    const std::string_view keyword = tokens[0];
+    if (keyword == "v") {
+      const size_t n = tokens.size() - 1;
+      if (n != 3 && n != 4 && n != 6 && n != 7)
+        refuse(at + "a vertex has " + std::to_string(n) +
+               " numbers; expected 3 (x y z), 4 (x y z w) or 6 (x y z r g b)");
+      double value[4] = {0, 0, 0, 1};
+      for (size_t k = 0; k < n; ++k) {
+        double v = 0;
+        if (!parseNumber(tokens[k + 1], v))
+          refuse(at + "vertex " + std::to_string(mesh.vertexCount()) + " entry " + std::to_string(k) +
+                 " must be a number, got " + quoted(tokens[k + 1]));
+        if (k < 3 || (k == 3 && n != 6)) value[k] = v;
+      }
+      if (value[3] != 1)
+        refuse(at + "vertex " + std::to_string(mesh.vertexCount()) + " has w = " + detail::number(value[3]) +
+               "; weft reads vertices with w = 1 (dividing by w would change the file's coordinates)");
+      if (mesh.vertexCount() >= kMaxVertices) refuse(at + "more than 2147483647 vertices");
+      mesh.xyz.insert(mesh.xyz.end(), value, value + 3);
+    } else if (keyword == "f" || keyword == "l" || keyword == "p") {
+      const size_t count = tokens.size() - 1;
+      if (count == 0) refuse(at + "'" + std::string(keyword) + "' with no vertex");
+      if (keyword == "p") {
+        mesh.points += count;
+        continue;
+      }
+      if (keyword == "l") {
+        ++mesh.lines;
+        continue;
+      }
+      if (count > kMaxPolygonCorners)
+        refuse(at + "a face has " + std::to_string(count) + " corners; weft reads polygons of up to " +
+               std::to_string(kMaxPolygonCorners));
+      for (size_t k = 0; k < count; ++k) {
+        const std::string_view token = tokens[k + 1];
+        const std::string_view vertex = token.substr(0, token.find('/'));
+        std::int64_t index = 0;
+        if (!parseWhole(vertex, index) || index == 0)
+          refuse(at + "corner " + std::to_string(k) + " of a face must be a vertex number (1 is the first, -1 the " +
+                 "last read), got " + quoted(token));
+        const auto read = static_cast<std::int64_t>(mesh.vertexCount());
+        if (index < 0) {
+          if (-index > read)
+            refuse(at + "corner " + std::to_string(k) + " of a face is vertex " + std::to_string(index) + ", but " +
+                   std::to_string(read) + " vertices are read so far");
+          index = read + index;
+        } else {
+          if (index > static_cast<std::int64_t>(kMaxVertices))
+            refuse(at + "corner " + std::to_string(k) + " of a face is vertex " + std::to_string(index) +
+                   "; weft reads up to 2147483647 vertices");
+          index -= 1;
+          if (index + 1 > largest) {
+            largest = index + 1;
+            largestLine = firstLine;
+          }
+        }
+        mesh.indices.push_back(static_cast<std::uint32_t>(index));
+      }
+      mesh.faceSizes.push_back(static_cast<std::uint32_t>(count));
+    }
+    // Anything else (vt, vn, o, g, s, usemtl, mtllib, ...) holds nothing weft uses.
+  }
+  if (largest > static_cast<std::int64_t>(mesh.vertexCount()))
+    refuse("OBJ line " + std::to_string(largestLine) + ": a face names vertex " + std::to_string(largest) +
+           ", but the file has " + std::to_string(mesh.vertexCount()) + " vertices");
+  if (mesh.faceSizes.empty())
+    refuse("no triangles: the OBJ file has " + counted(mesh.vertexCount(), "vertex", "vertices") + ", " +
+           counted(mesh.points, "point", "points") + ", " + counted(mesh.lines, "line", "lines") + " and no faces");
+  std::vector<PolygonMesh> meshes;
+  meshes.push_back(std::move(mesh));
+  return meshes;
+}
+
+// ---------------------------------------------------------------------------------------
+// Polygons to triangles
+
+void triangulatePolygon(const std::vector<double>& xyz, const std::uint32_t* corners, std::uint32_t count,
+                        std::vector<std::array<std::uint32_t, 3>>& out) {
+  if (count < 3) return;
+  if (count == 3) {
+    out.push_back({corners[0], corners[1], corners[2]});
+    return;
+  }
+  const auto at = [&](std::uint32_t k, int axis) { return xyz[3 * static_cast<size_t>(corners[k]) + axis]; };
+  // Newell's normal: its components are the polygon's areas projected on the three planes.
+  double normal[3] = {0, 0, 0};
+  for (std::uint32_t k = 0; k < count; ++k) {
+    const std::uint32_t j = k + 1 == count ? 0 : k + 1;
+    normal[0] += (at(k, 1) - at(j, 1)) * (at(k, 2) + at(j, 2));
+    normal[1] += (at(k, 2) - at(j, 2)) * (at(k, 0) + at(j, 0));
+    normal[2] += (at(k, 0) - at(j, 0)) * (at(k, 1) + at(j, 1));
+  }
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(normal[a]) > std::abs(normal[axis])) axis = a;
+  if (!(std::abs(normal[axis]) > 0) || !std::isfinite(normal[axis])) {  // no area: a fan, cleaned away later
+    for (std::uint32_t k = 1; k + 1 < count; ++k) out.push_back({corners[0], corners[k], corners[k + 1]});
+    return;
+  }
+  // In the plane across `axis` ((u, v) = the next two axes, so that the 2D cross product is
+  // the normal's `axis` component), turned so that the polygon runs counter-clockwise.
+  const int ua = (axis + 1) % 3, va = (axis + 2) % 3;
+  const double turn = normal[axis] > 0 ? 1 : -1;
+  std::vector<double> u(count), v(count);
+  for (std::uint32_t k = 0; k < count; ++k) {
+    u[k] = at(k, ua);
+    v[k] = turn * at(k, va);
+  }
+  const auto cross = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    return (u[b] - u[a]) * (v[c] - v[a]) - (v[b] - v[a]) * (u[c] - u[a]);
+  };
+  std::vector<std::uint32_t> prev(count), next(count);
+  for (std::uint32_t k = 0; k < count; ++k) {
+    prev[k] = k == 0 ? count - 1 : k - 1;
+    next[k] = k + 1 == count ? 0 : k + 1;
+  }
+  // Only a reflex corner can lie inside an ear; clipping ears makes no corner reflex.
+  std::vector<std::uint32_t> reflex;
+  for (std::uint32_t k = 0; k < count; ++k)
+    if (cross(prev[k], k, next[k]) <= 0) reflex.push_back(k);
+  std::vector<char> removed(count, 0);
+  const auto same = [&](std::uint32_t a, std::uint32_t b) { return u[a] == u[b] && v[a] == v[b]; };
+  const auto isEar = [&](std::uint32_t b) {
+    const std::uint32_t a = prev[b], c = next[b];
+    if (!(cross(a, b, c) > 0)) return false;
+    for (const std::uint32_t r : reflex) {
+      if (removed[r] || r == a || r == b || r == c || same(r, a) || same(r, b) || same(r, c)) continue;
+      if (cross(a, b, r) >= 0 && cross(b, c, r) >= 0 && cross(c, a, r) >= 0) return false;
+    }
+    return true;
+  };
+  const auto clip = [&](std::uint32_t b) {
+    out.push_back({corners[prev[b]], corners[b], corners[next[b]]});
+    removed[b] = 1;
+    next[prev[b]] = next[b];
+    prev[next[b]] = prev[b];
+  };
+  std::uint32_t remaining = count, k = 0, tried = 0;
+  while (remaining > 3) {
+    if (isEar(k) || tried > remaining) {  // (no ear in a whole round: the polygon crosses itself)
+      const std::uint32_t after = next[k];
+      clip(k);
+      k = after;
+      --remaining;
+      tried = 0;
+    } else {
+      k = next[k];
+      ++tried;
+    }
+  }
+  out.push_back({corners[prev[k]], corners[k], corners[next[k]]});
 }
 
 }  // namespace weft::io_detail

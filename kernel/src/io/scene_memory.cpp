@@ -2,8 +2,11 @@
 // and its particles, springs, triangles and heap (estimateSceneMemory), so that the
 // command line can refuse or warn about a scene before building it.
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
+#include <filesystem>
 #include <limits>
+#include <string>
 
 #include "scene_internal.hpp"
 
@@ -94,6 +97,14 @@ constexpr double kBytesPerSelfCollisionTriangle = 1000;
 // Resident memory a rigid body's share of the world takes while a pile of them collides
 // (pairs, caches, manifolds, constraints), measured on the `pile` (1005 bodies: 6.5 MB).
 constexpr double kBytesPerRigidBody = 6500;
+
+/// Whether assimp reads the mesh file `name` (weft reads PLY, STL and OBJ itself; a name
+/// without one of their extensions is counted as assimp's, the larger estimate).
+bool readByAssimp(const std::string& name) {
+  std::string extension = std::filesystem::path(name).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension != ".ply" && extension != ".stl" && extension != ".obj";
+}
 }  // namespace
 
 MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
@@ -116,12 +127,12 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
       }
       case BodyKind::ClothMesh:
         ++e.meshBodies;
-        e.readsMeshes = true;
+        e.readsMeshes = e.readsMeshes || readByAssimp(body.meshFile);
         break;
     }
   }
   e.rigidBodies = static_cast<std::int64_t>(scene.simulation.rigid.bodies.size());
-  e.readsMeshes = e.readsMeshes || !scene.meshObstacles.empty();
+  for (const MeshObstacleSpec& m : scene.meshObstacles) e.readsMeshes = e.readsMeshes || readByAssimp(m.meshFile);
   const bool isFloat = scene.precision == Precision::Float;
   const Rates r = memoryRates(scene.simulation.integrator, isFloat);
   const double particles = static_cast<double>(e.particles), springs = static_cast<double>(e.springs),

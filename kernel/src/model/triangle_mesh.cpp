@@ -149,6 +149,12 @@ std::string MeshReport::summary() const {
   add(duplicateTriangles, "duplicate triangle dropped", "duplicate triangles dropped");
   add(nonManifoldEdges, "non-manifold edge", "non-manifold edges");
   add(boundaryEdges, "boundary edge", "boundary edges");
+  const auto ignored = [&text](std::int64_t n, const char* one, const char* many) {
+    if (n != 0) text += "; " + std::to_string(n) + " " + (n == 1 ? one : many);
+  };
+  ignored(ignoredPoints, "point ignored", "points ignored");
+  ignored(ignoredLines, "line ignored", "lines ignored");
+  ignored(emptyFaces, "face with no corner ignored", "faces with no corner ignored");
   return text;
 }
 

@@ -2,23 +2,26 @@
 //
 // Design note
 // -----------
-// loadMesh reads any format assimp reads (OBJ, 3DS — the original design's format — PLY,
-// STL, glTF, Collada, FBX, ...) into one TriangleMesh. PLY (ASCII and binary, both byte
-// orders) and STL (ASCII and binary) are read by weft's own readers, which take the place
-// of assimp's for those formats (assimp 5.2's PLY reader hangs, crashes or allocates
-// gigabytes on damaged files): they check every count a file declares against the bytes
-// that follow before allocating, and name the header line, element or facet where a
-// damaged file goes wrong. A file whose extension assimp does not know (or that has none)
-// goes to them when its first bytes say PLY or STL. Then, for every format, assimp
-// triangulates polygons (aiProcess_Triangulate), bakes the node transforms into the
+// loadMesh reads any format assimp reads (3DS — the original design's format — glTF,
+// Collada, FBX, ...) into one TriangleMesh. PLY (ASCII and binary, both byte orders), STL
+// (ASCII and binary) and OBJ are read by weft's own readers (assimp 5.2's PLY reader hangs,
+// crashes or allocates gigabytes on damaged files; its OBJ reader gives every face corner a
+// vertex of its own and rounds coordinates to float): they check every count a file declares
+// against the bytes that follow before allocating, name the header line, element, facet or
+// line where a damaged file goes wrong, and keep the file's vertices in its order and in
+// double (a PLY `property double` or an OBJ coordinate arrives as written). A file whose
+// extension assimp does not know (or that has none) goes to them when its first bytes say
+// PLY or STL. Other formats go through assimp, which bakes the node transforms into the
 // vertices and flattens the hierarchy (aiProcess_PreTransformVertices, so instanced meshes
-// appear once per instance); weft then concatenates every mesh of the scene and keeps the
-// faces with three corners (points and lines are ignored). assimp is not asked to join
-// identical vertices: welding is cleanMesh's job, so that it can be counted and reported.
-// Note that every face corner of an OBJ, 3DS or STL file gets its own vertex (PLY keeps
-// the file's shared vertices), so the weld count of such a file includes those copies,
-// not only the file's own duplicates. Coordinates pass through single precision (assimp's
-// ai_real); one beyond its range arrives as an infinity, which cleanMesh refuses.
+// appear once per instance), in single precision (assimp's ai_real; one beyond its range
+// arrives as an infinity, which cleanMesh refuses). For every format weft triangulates
+// polygons itself, by ear clipping in each polygon's plane (assimp 5.2 folds concave ones),
+// concatenates every mesh and keeps the triangles; points and lines are not cloth, and
+// loadCleanMesh's report counts them (MeshReport::ignoredPoints, ignoredLines). assimp is
+// not asked to join identical vertices: welding is cleanMesh's job, so that it can be
+// counted and reported. Every face corner of a 3DS or STL file gets its own vertex (STL
+// shares none), so the weld count of such a file includes those copies, not only the
+// file's own duplicates.
 //
 // Orientation is assimp's, which is weft's (y up, gravity along -y): files in a z-up
 // format are turned by their reader, e.g. the 3DS reader maps a file's (x, y, z) to

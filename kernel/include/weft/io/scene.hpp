@@ -56,10 +56,10 @@ const char* bodyKindName(BodyKind kind);
 struct BodySpec {
   BodyKind kind = BodyKind::ClothGrid;
   std::string name;
-  RopeSpec rope;           // kind == Rope
-  ClothGridSpec grid;      // kind == ClothGrid
-  std::string meshFile;    // kind == ClothMesh: any format assimp reads (OBJ, 3DS, PLY, ...)
-  ClothMeshSpec mesh;      // kind == ClothMesh
+  RopeSpec rope;         // kind == Rope
+  ClothGridSpec grid;    // kind == ClothGrid
+  std::string meshFile;  // kind == ClothMesh: PLY, STL, OBJ (weft's readers) or a format assimp reads (3DS, glTF, ...)
+  ClothMeshSpec mesh;    // kind == ClothMesh
   MeshCleanOptions clean;  // kind == ClothMesh
   std::vector<PinSpec> pins;
   Vec3d velocity{0, 0, 0};  // initial velocity of the body's free particles, m/s
@@ -74,7 +74,7 @@ struct BodySpec {
 /// `obstacle` (name, path, restitution, friction) is used as given.
 struct MeshObstacleSpec {
   MeshObstacle obstacle;     // its mesh is filled at assembly
-  std::string meshFile;      // any format assimp reads (a scene file's paths are resolved against its directory)
+  std::string meshFile;      // as meshFile above (a scene file's paths are resolved against its directory)
   std::string meshContents;  // not empty: the file's contents, in memory (built-in scenes); meshFile names it
   MeshCleanOptions clean;    // weld tolerance
   double scale = 1;          // > 0
@@ -113,7 +113,7 @@ struct MemoryEstimate {
   std::int64_t particles = 0, springs = 0, triangles = 0;
   std::int64_t rigidBodies = 0;
   std::int64_t meshBodies = 0;  // cloth_mesh bodies, not counted
-  bool readsMeshes = false;     // cloth meshes or mesh obstacles: assimp will be loaded
+  bool readsMeshes = false;     // a cloth mesh or mesh obstacle in a format assimp reads (not PLY, STL, OBJ)
   double bytes = 0;
 };
 MemoryEstimate estimateSceneMemory(const SceneSpec& scene);

@@ -40,6 +40,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,10 @@ struct MeshReport {
   Index boundaryEdges = 0;         // edges of exactly one kept triangle
   Index outputVertices = 0;
   Index outputTriangles = 0;
+  // What a mesh file held beside its faces (filled by loadCleanMesh; cleanMesh leaves them 0):
+  std::int64_t ignoredPoints = 0;  // point primitives (OBJ p, faces of one corner): not cloth
+  std::int64_t ignoredLines = 0;   // line primitives (OBJ l, faces of two corners): not cloth
+  std::int64_t emptyFaces = 0;     // faces listed with no corner (PLY)
 
   /// One line: input and output sizes, then every non-zero count, e.g.
   /// "24 vertices, 8 triangles in; 9 vertices, 8 triangles out; 15 welded vertices; 8 boundary edges".
