@@ -291,13 +291,28 @@ TEST(Cli, OptionsOverrideTheScene) {
   EXPECT_EQ(j["effects"], (nlohmann::json{"wind"}));
 }
 
-// Integers are read in base 10 (CLI11 alone would read "010" as octal 8).
+// Integers are read in base 10 (CLI11 alone would read "010" as octal 8), also after white space.
 TEST(Cli, IntegersWithLeadingZerosAreDecimal) {
-  const nlohmann::json j = runJson("run rope --size 010 --steps 012 --threads 01");
+  const nlohmann::json j = runJson("run rope --size 010 --steps ' 012' --threads 01");
   ASSERT_TRUE(j.is_object());
   EXPECT_EQ(j["particles"], 10);
   EXPECT_EQ(j["steps"], 12);
   EXPECT_EQ(j["threads"], 1);
+}
+
+// A run refused while it is set up (here: frames of a scene without particles) writes no
+// checkpoint, so the corrected command is not refused for a file the refused one left.
+TEST(Cli, ARunRefusedAtSetUpLeavesNoCheckpoint) {
+  const std::string checkpoint = ::testing::TempDir() + "weft_cli_refused.wckpt";
+  std::filesystem::remove(checkpoint);
+  const CliRun refused = weft(
+      "run stack --steps 2 --checkpoint " + checkpoint + " --out " + ::testing::TempDir() + "weft_cli_refused_frames",
+      true);
+  EXPECT_EQ(refused.exitCode, 2) << refused.out;
+  EXPECT_FALSE(std::filesystem::exists(checkpoint));
+  const CliRun corrected = weft("run stack --steps 2 --checkpoint " + checkpoint, true);
+  EXPECT_EQ(corrected.exitCode, 0) << corrected.out;
+  std::filesystem::remove(checkpoint);
 }
 
 // With the stability check off nothing stops a run that blows up: it does not end "ok".

@@ -98,11 +98,17 @@ TEST(Frames, AClothAndARopeAreBothInTheFrame) {
   rope.origin = {0, -1, 0};
   addRope(b, rope);                                         // particles 9..12, 3 links
   b.addSpring(0, 9, {10, 0}, SpringClass::Structural, -1);  // the rope hangs from the cloth
+  b.addSpring(2, 6, {10, 0}, SpringClass::Structural, -1);  // a stitch across the cloth: no edge
   const ModelAndState<double> built = b.build();
   const FrameTopology t = frameTopology(built.model);
   EXPECT_EQ(t.triangles.size(), 8u);
-  ASSERT_EQ(t.lines.size(), 4u);
-  for (const auto& l : t.lines) EXPECT_TRUE(l[0] >= 9 || l[1] >= 9) << l[0] << " - " << l[1];
+  ASSERT_EQ(t.lines.size(), 5u);
+  for (const auto& l : t.lines)
+    EXPECT_TRUE(l[0] >= 9 || l[1] >= 9 || (l[0] == 2 && l[1] == 6)) << l[0] << " - " << l[1];
+  // The glTF writer holds one kind of primitive: both are refused, not one dropped.
+  const std::string both = thrownMessage<std::invalid_argument>(
+      [&] { GltfAnimationWriter<double> w(tempPath("both.glb"), built.model.particleCount(), t); });
+  EXPECT_NE(both.find("8 triangles and 5 lines"), std::string::npos) << both;
 }
 
 TYPED_TEST(FramesTyped, ObjOfAFlagHasEveryVertexAndFaceAndParsesBackExactly) {

@@ -9,10 +9,10 @@
 // particular path or content (missing, a directory, unreadable, NaN coordinates, ...) are
 // written to the test temp directory.
 //
-// What assimp does, as these tests pin down: it gives every face corner of an OBJ or 3DS
-// file its own vertex (a quad of 4 "v" lines and 2 faces arrives as 6 vertices), reads
-// OBJ "p" and "l" elements as point and line primitives (ignored here), and its 3DS reader
-// turns the file's z-up coordinates to y-up: (x, y, z) -> (x, z, -y).
+// What the readers do, as these tests pin down: weft's OBJ reader keeps the file's shared
+// vertices (a quad of 4 "v" lines and 2 faces arrives as 4 vertices) and counts "p" and "l"
+// elements (not cloth); assimp gives every face corner of a 3DS file its own vertex, and its
+// 3DS reader turns the file's z-up coordinates to y-up: (x, y, z) -> (x, z, -y).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>

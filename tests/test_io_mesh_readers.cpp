@@ -111,7 +111,7 @@ void expectTheSixVertices(const TriangleMesh& mesh, const std::string& which) {
     EXPECT_EQ(mesh.vertices[v].z, static_cast<double>(static_cast<float>(kVertices[v].z))) << which << " vertex " << v;
   }
   // The quad is cut in two by weft's triangulation (ear clipping), the same for every format.
-  const std::vector<std::array<Index, 3>> triangles = {{0, 1, 2}, {4, 0, 2}, {4, 2, 3}, {1, 5, 2}};
+  const std::vector<std::array<Index, 3>> triangles = {{0, 1, 2}, {4, 0, 2}, {3, 4, 2}, {1, 5, 2}};
   EXPECT_EQ(mesh.triangles, triangles) << which;
 }
 
@@ -453,6 +453,31 @@ TEST(PolygonTriangulation, AConcavePolygonIsCutInsideItsOutline) {
   }
 }
 
+// A polygon built against ear clipping: a 16-pointed star drawn twice around, the second lap
+// turned by half a point, 4096 corners (the most a face may have). It has no ear, so every
+// cut is a fallback; the cutting must stay fast (a fuzzer's input gets 10 s) and give
+// count - 2 triangles. (Its triangles overlap: it crosses itself; cleaning keeps them.)
+TEST(PolygonTriangulation, ASelfCrossingPolygonIsCutQuickly) {
+  const int corners = 4096, points = 16;
+  std::string obj;
+  for (int k = 0; k < corners; ++k) {
+    const int lap = k / (corners / 2), j = k % (corners / 2);
+    const double angle = 2 * 3.141592653589793 * (j + 0.5 * lap) / (corners / 2);
+    const double radius = (j % (corners / 2 / points / 2) == 0) ? 2.0 : 1.0 + 0.5 * lap;
+    std::ostringstream line;
+    line.precision(17);
+    line << "v " << radius * std::cos(angle) << " " << radius * std::sin(angle) << " 0\n";
+    obj += line.str();
+  }
+  obj += "f";
+  for (int k = 1; k <= corners; ++k) {
+    obj += ' ';
+    obj += std::to_string(k);
+  }
+  obj += '\n';
+  EXPECT_EQ(loadMeshFromMemory(obj, "star.obj").triangles.size(), static_cast<size_t>(corners - 2));
+}
+
 // Faces name the file's vertices, which keep the file's order (through assimp each face
 // corner became a vertex, numbered by face: a pin on vertex 0 held another vertex), and their
 // coordinates as written (through assimp they passed through float).
@@ -489,6 +514,25 @@ TEST(ObjReader, EveryFormOfAFaceCornerAndOfAVertexIsRead) {
   const std::vector<std::array<Index, 3>> triangles = {{0, 1, 2}, {0, 2, 3}};
   EXPECT_EQ(mesh.triangles, triangles);
   EXPECT_EQ(mesh.vertices[1].x, 1.0) << "the colour is not read as a coordinate";
+}
+
+TEST(ObjReader, LineEndsCommentsAndNamesAreReadAsTheyAreMeant) {
+  const std::vector<std::array<Index, 3>> one = {{0, 1, 2}};
+  // Lone CR line ends (classic Mac OS), and CR LF.
+  EXPECT_EQ(loadMeshFromMemory("# cr\rv 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r", "cr.obj").triangles, one);
+  EXPECT_EQ(loadMeshFromMemory("v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 3\r\n", "crlf.obj").triangles, one);
+  // A comment ending in a backslash does not continue onto the next line.
+  const TriangleMesh commented =
+      loadMeshFromMemory("# from C:\\models\\\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n", "c.obj");
+  EXPECT_EQ(commented.vertices.size(), 3u);
+  EXPECT_EQ(commented.triangles, one);
+  // A continuation on the last line ends with the file.
+  EXPECT_EQ(loadMeshFromMemory("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 \\", "end.obj").triangles, one);
+  // OBJ contents under a name assimp does not know are read by weft's reader too (the file's
+  // shared vertices, not a vertex per face corner).
+  const std::string quad = "# a quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+  EXPECT_EQ(loadMeshFromMemory(quad, "mesh.cloth").vertices.size(), 4u);
+  EXPECT_EQ(loadMeshFromMemory(quad, "mesh").vertices.size(), 4u);
 }
 
 TEST(ObjReader, PointsAndLinesAreCountedInTheReport) {
@@ -528,6 +572,9 @@ TEST(ObjReader, DamagedFilesAreRefusedWhereTheyGoWrong) {
       {three + "f 1 2 99999999999\n", "OBJ line 4: corner 2 of a face is vertex 99999999999; weft reads up to"},
       {three + "f\n", "OBJ line 4: 'f' with no vertex"},
       {three + "l 1 2\np 3\n", "no triangles: the OBJ file has 3 vertices, 1 point, 1 line and no faces"},
+      {three + "v 1 2 3 0.5 0.5 0.5 1\nf 1 2 3\n", "OBJ line 4: a vertex has 7 numbers"},
+      {three + "f 1 2 -9223372036854775808\n", "OBJ line 4: corner 2 of a face is vertex -9223372036854775808, but 3"},
+      {three + "f 1 2 +-1\n", "OBJ line 4: corner 2 of a face must be a vertex number"},
   };
   for (const auto& c : cases)
     EXPECT_THAT(refusal(c.contents, "bad.obj"), AllOf(HasSubstr("mesh file 'bad.obj': "), HasSubstr(c.expected)))

@@ -481,10 +481,11 @@ TEST(ParticleCoupling, MomentumIsExchangedNotMadeOrLost) {
 }
 
 TEST(ParticleCoupling, AResponseThatOverstretchesFailsTheStepAndPutsBothPartsBack) {
-  // One spring of rest length 0.1 m from a pinned particle at the origin; a static sphere of
-  // radius 0.5 centred at x = -0.35 holds its free end 0.05 m deep. The particles' own step
-  // is at rest and passes; the coupling pushes the free end out to x = 0.15, 1.5 x the rest
-  // length, past the limit of 1.2: the step fails, and particles and bodies stay as they were.
+  // One spring of rest length 0.1 m from a pinned particle at the origin; a heavy free sphere
+  // of radius 0.5 centred at x = -0.35 holds its free end 0.05 m deep, the end moving into it
+  // at 1 m/s. The particles' own step passes; the coupling pushes the free end out to about x = 0.15, 1.5 x the
+  // rest length, past the limit of 1.2, and gives the sphere the reaction: the step fails, and
+  // particles and the sphere (its velocity too) stay as they were.
   ModelBuilder<double> b;
   b.addParticle({0, 0, 0}, 0.01);
   b.addParticle({0.1, 0, 0}, 0.01);
@@ -496,14 +497,16 @@ TEST(ParticleCoupling, AResponseThatOverstretchesFailsTheStepAndPutsBothPartsBac
   options.gravity = {0, 0, 0};
   options.stability.maxStretch = 1.2;
   RigidBodyDesc ball;
-  ball.motion = BodyMotion::Static;
+  ball.mass = 100;
   RigidShapeDesc sphere;
   sphere.kind = RigidShapeDesc::Kind::Sphere;
   sphere.radius = 0.5;
   ball.shapes = {sphere};
   ball.position = {-0.35, 0, 0};
   options.rigid.bodies = {ball};
-  Simulation<double> sim(b.build(), options);
+  ModelAndState<double> built = b.build();
+  built.state.v(1, 0) = -1;  // into the sphere: the coupling's impulse gives the sphere a reaction
+  Simulation<double> sim(built, options);
   const std::uint64_t before = stateHash(sim.state()) ^ rigidStateHash(sim.rigidWorld()->state());
   const StepStatus status = sim.step();
   EXPECT_EQ(status.code, StepCode::Overstretched) << status.message();
@@ -519,9 +522,12 @@ TEST(ParticleCoupling, AResponseThatOverstretchesFailsTheStepAndPutsBothPartsBac
   again.addParticle({0.1, 0, 0}, 0.01);
   again.addSpring(0, 1, {50, 0.01}, SpringClass::Structural, -1);
   again.pin(0);
-  Simulation<double> loose(again.build(), options);
+  ModelAndState<double> looseBuilt = again.build();
+  looseBuilt.state.v(1, 0) = -1;
+  Simulation<double> loose(looseBuilt, options);
   ASSERT_TRUE(loose.step().ok());
-  EXPECT_GT(loose.state().x(1, 0), 0.149);
+  EXPECT_GT(loose.state().x(1, 0), 0.14);
+  EXPECT_LT(loose.rigidWorld()->state().v[0].x(), 0.0) << "the sphere took the reaction";
 }
 
 TEST(ParticleCoupling, BitwiseTheSameOnOneAndTwoThreads) {

@@ -33,6 +33,7 @@
 namespace weft::test {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 
 const std::string kScenes = std::string(WEFT_SOURCE_DIR) + "/tools/scenes";
@@ -1106,6 +1107,12 @@ TEST(SceneMeshes, TheWeldToleranceIsInMetresAfterScale) {
   EXPECT_EQ(kept.built.model.particleCount(), 4);
   EXPECT_EQ(kept.built.model.triangleCount(), 2);
   EXPECT_THAT(sceneError([&] { assembled(150); }), HasSubstr("no triangles after cleaning"));
+  // A scale so small that the tolerance in the file's units overflows is named as such.
+  const SceneSpec tiny = parseScene(R"({"bodies": [{"type": "cloth_mesh", "mesh": ")" + path +
+                                    R"(", "scale": 5e-324, "weld_tolerance": 1}], "dt": 0.001, "steps": 1})");
+  EXPECT_THAT(
+      sceneError([&] { assembleScene<double>(tiny); }),
+      AllOf(HasSubstr("bodies[0].mesh: weld_tolerance 1 m / scale 5e-324 must be finite"), HasSubstr("overflows")));
 }
 
 /// Bad meshes and mesh pins show when the scene is assembled (the reader checks only that

@@ -6,7 +6,7 @@
 #   fuzz_scene        tests/fuzz/fuzz_scene.cpp: weft::parseScene on every input; small
 #                     accepted scenes are also assembled, built into a Simulation and stepped once.
 #   fuzz_mesh         tests/fuzz/fuzz_mesh.cpp: the first byte picks the format hint (byte % 4:
-#                     obj, ply, stl, 3ds: assimp reads obj and 3ds, weft's own readers ply and
+#                     obj, ply, stl, 3ds: assimp reads 3ds, weft's own readers obj, ply and
 #                     stl), the rest goes to weft::loadMeshFromMemory; an accepted
 #                     mesh is cleaned with cleanMesh and, when small, built into a cloth
 #                     (addClothMesh, ModelBuilder::build) in float and in double.
@@ -46,8 +46,7 @@
 # tests/fuzz/regressions/ holds the inputs of past findings, fixed: keep each new one there
 # (scene inputs at its top level, the others in the folder named after the target: mesh/,
 # frame_cache/), with a unit test that feeds the same bytes. Leaks inside assimp (not weft's
-# to free) are suppressed by tests/lsan.supp. fuzz_mesh is slow (about ten inputs a
-# second: assimp's OBJ reader fills a large buffer per file, costly under ASan).
+# to free) are suppressed by tests/lsan.supp.
 # Reproduce a finding: build-fuzz/tests/fuzz/fuzz_scene build-fuzz/findings/crash-...
 # (likewise fuzz_mesh build-fuzz/mesh/findings/..., fuzz_frame_cache build-fuzz/frame_cache/findings/...,
 # fuzz_checkpoint build-fuzz/checkpoint/findings/...).

@@ -61,6 +61,8 @@ const CLI::Validator nonNegativeInteger(
 // integer option is read in base 10: leading zeros are dropped, other prefixes refused.
 const CLI::Validator decimalInteger(
     [](std::string& text) -> std::string {
+      const std::size_t blank = text.find_first_not_of(" \t\n\r\f\v");  // (strtoll skips leading white space)
+      text.erase(0, blank == std::string::npos ? text.size() : blank);
       const std::size_t sign = !text.empty() && (text[0] == '+' || text[0] == '-') ? 1 : 0;
       std::size_t first = sign;
       while (first + 1 < text.size() && text[first] == '0') ++first;

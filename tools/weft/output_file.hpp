@@ -18,7 +18,11 @@ namespace weftcli {
 /// this call creates is removed again.
 inline void checkOutputFile(const std::string& path, const std::string& option) {
   std::error_code error;
-  const bool existed = std::filesystem::exists(path, error);
+  const std::filesystem::file_status status = std::filesystem::status(path, error);
+  const bool existed = std::filesystem::exists(status);
+  // A path that exists and is no regular file (/dev/stdout, a pipe: opening a pipe would
+  // wait for its reader) is taken as it is; writing it reports its own errors.
+  if (existed && !std::filesystem::is_regular_file(status)) return;
   std::FILE* f = std::fopen(path.c_str(), "ab");
   if (!f) throw std::invalid_argument(option + " " + path + ": cannot write the file (" + std::strerror(errno) + ")");
   std::fclose(f);

@@ -389,12 +389,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                                   "--resume " +
                                   *o.checkpoint + ", or remove the file first");
   }
+  std::optional<FrameSink<S>> frames;  // (its checks first: a refused run leaves no checkpoint behind)
+  if (!output.directory.empty()) frames.emplace(output, sim.model(), spec.name, steps);
   // A first checkpoint before any step: a path that cannot be written fails now, not after
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);
-  std::optional<FrameSink<S>> frames;
-  if (!output.directory.empty()) {
-    frames.emplace(output, sim.model(), spec.name, steps);
+  if (frames) {
     if (o.resume)
       frames->resumeAt(sim.stepCount() / output.every + 1);
     else

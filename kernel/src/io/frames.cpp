@@ -1,5 +1,6 @@
 #include "weft/io/frames.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cinttypes>
@@ -113,16 +114,23 @@ template <class S>
 FrameTopology frameTopology(const Model<S>& model) {
   FrameTopology topology;
   const Triangles& tr = model.triangles();
-  std::vector<char> inTriangle(static_cast<std::size_t>(model.particleCount()), 0);
+  const auto key = [](Index a, Index b) {
+    return static_cast<std::uint64_t>(std::min(a, b)) << 32 | static_cast<std::uint64_t>(std::max(a, b));
+  };
+  std::vector<std::uint64_t> edges;  // the triangles' edges, sorted
   topology.triangles.reserve(static_cast<std::size_t>(tr.count()));
+  edges.reserve(3 * static_cast<std::size_t>(tr.count()));
   for (Index t = 0; t < tr.count(); ++t) {
     topology.triangles.push_back({tr.a[t], tr.b[t], tr.c[t]});
-    inTriangle[tr.a[t]] = inTriangle[tr.b[t]] = inTriangle[tr.c[t]] = 1;
+    edges.insert(edges.end(), {key(tr.a[t], tr.b[t]), key(tr.b[t], tr.c[t]), key(tr.c[t], tr.a[t])});
   }
-  // Ropes (and links from a rope to a cloth): the structural springs not inside the triangles.
+  std::sort(edges.begin(), edges.end());
+  // Ropes, links from a rope to a cloth and stitches between cloths: the structural springs
+  // that are no triangle's edge.
   const Springs<S>& springs = model.springs();
   for (Index s = 0; s < springs.count(); ++s)
-    if (springs.kind[s] == SpringClass::Structural && !(inTriangle[springs.a[s]] && inTriangle[springs.b[s]]))
+    if (springs.kind[s] == SpringClass::Structural &&
+        !std::binary_search(edges.begin(), edges.end(), key(springs.a[s], springs.b[s])))
       topology.lines.push_back({springs.a[s], springs.b[s]});
   return topology;
 }

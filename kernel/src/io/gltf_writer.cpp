@@ -131,6 +131,10 @@ GltfAnimationWriter<S>::GltfAnimationWriter(std::string path, Index particleCoun
   w.topology = std::move(topology);
   if (particleCount < 1)
     w.fail("particleCount = " + std::to_string(particleCount) + ": a glTF mesh needs at least one vertex");
+  if (!w.topology.triangles.empty() && !w.topology.lines.empty())
+    w.fail("the topology has " + std::to_string(w.topology.triangles.size()) + " triangles and " +
+           std::to_string(w.topology.lines.size()) +
+           " lines: the mesh is written as one primitive of one kind (give triangles or lines, not both)");
   const auto check = [&](const char* field, std::size_t item, int corner, Index value) {
     if (value < 0 || value >= particleCount)
       w.fail(std::string(field) + "[" + std::to_string(item) + "][" + std::to_string(corner) +

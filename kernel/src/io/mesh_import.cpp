@@ -56,10 +56,10 @@ void checkReadable(const std::string& path) {
   if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
 }
 
-/// One of weft's own readers (mesh_readers.hpp: PLY, STL) as an assimp loader. Importer
-/// takes assimp's loader for the format out of the importer and puts this one in, so that
-/// assimp's readers for these formats never see a file, while its post-processing
-/// (triangulation, node transforms) runs on what weft read as on any other format.
+/// One of weft's own readers (mesh_readers.hpp: PLY, STL, OBJ) as an assimp loader. loadMesh
+/// hands those files to the readers itself (trianglesOf, in double); Importer also takes
+/// assimp's loader for each of these formats out of the importer and puts this one in, so
+/// that assimp's own readers for them never see a file, whatever name it has.
 class WeftLoader final : public Assimp::BaseImporter {
  public:
   using Read = std::vector<io_detail::PolygonMesh> (*)(std::string_view bytes);
@@ -155,16 +155,20 @@ struct Importer {
   Assimp::Importer assimp;
   WeftLoader* ply = nullptr;  // owned by `assimp` (it deletes its loaders)
   WeftLoader* stl = nullptr;
+  WeftLoader* obj = nullptr;
 
   Importer() {
     // A file with bones but no meshes must not turn into assimp's generated bone geometry.
     assimp.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
     ply = replace(new WeftLoader("weft PLY reader", "ply", io_detail::readPly));
     stl = replace(new WeftLoader("weft STL reader", "stl", io_detail::readStl));
+    obj = replace(new WeftLoader("weft OBJ reader", "obj", io_detail::readObj));
   }
 
   /// The message weft's own reader gave for the file it last refused ("" if none did).
-  std::string readerError() const { return !ply->error().empty() ? ply->error() : stl->error(); }
+  std::string readerError() const {
+    return !ply->error().empty() ? ply->error() : !stl->error().empty() ? stl->error() : obj->error();
+  }
 
  private:
   WeftLoader* replace(WeftLoader* mine) {
@@ -275,6 +279,10 @@ TriangleMesh collectTriangles(const aiScene* scene, const std::string& path, Ign
       if (face.mNumIndices == 2) ++lines;
       if (face.mNumIndices > 3) ++polygons;
       if (face.mNumIndices < 3) continue;
+      if (face.mNumIndices > io_detail::kMaxPolygonCorners)
+        fail(path, "mesh " + std::to_string(m) + " face " + std::to_string(f) + " has " +
+                       std::to_string(face.mNumIndices) + " corners; weft reads polygons of up to " +
+                       std::to_string(io_detail::kMaxPolygonCorners));
       corners.clear();
       for (unsigned k = 0; k < face.mNumIndices; ++k) {
         const unsigned index = face.mIndices[k];

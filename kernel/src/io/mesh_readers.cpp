@@ -648,6 +648,28 @@ std::vector<PolygonMesh> readStl(std::string_view bytes) {
 // ---------------------------------------------------------------------------------------
 // OBJ
 
+bool looksLikeObj(std::string_view head) {
+  // The first statement that is not a comment: an OBJ keyword followed by white space.
+  static constexpr std::string_view kKeywords[] = {"v", "vt", "vn", "vp", "f",      "l",
+                                                   "p", "o",  "g",  "s",  "mtllib", "usemtl"};
+  size_t pos = 0;
+  while (pos < head.size()) {
+    while (pos < head.size() && isSpace(head[pos])) ++pos;
+    if (pos < head.size() && head[pos] == '#') {
+      while (pos < head.size() && head[pos] != '\n' && head[pos] != '\r') ++pos;
+      continue;
+    }
+    size_t end = pos;
+    while (end < head.size() && !isSpace(head[end])) ++end;
+    if (end == head.size()) return false;  // (a keyword cut by the end of the head says nothing)
+    const std::string_view word = head.substr(pos, end - pos);
+    for (const std::string_view keyword : kKeywords)
+      if (word == keyword) return true;
+    return false;
+  }
+  return false;
+}
+
 std::vector<PolygonMesh> readObj(std::string_view bytes) {
   PolygonMesh mesh;
   constexpr std::uint64_t kMaxVertices = static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max());
@@ -659,24 +681,26 @@ std::vector<PolygonMesh> readObj(std::string_view bytes) {
   size_t pos = 0;
   std::vector<std::string_view> tokens;
   while (pos < bytes.size()) {
-    // The next logical line.
+    // The next logical line: physical lines end in \n, \r\n or a lone \r; a comment runs to
+    // the end of its physical line; a line ending in a backslash continues on the next.
     logical.clear();
     const std::int64_t firstLine = lineNumber + 1;
     for (;;) {
-      const size_t end = std::min(bytes.find('\n', pos), bytes.size());
+      size_t end = pos;
+      while (end < bytes.size() && bytes[end] != '\n' && bytes[end] != '\r') ++end;
       std::string_view line = bytes.substr(pos, end - pos);
-      pos = end + 1;
+      pos = end < bytes.size() && bytes[end] == '\r' && end + 1 < bytes.size() && bytes[end + 1] == '\n' ? end + 2
+                                                                                                         : end + 1;
       ++lineNumber;
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      const size_t hash = line.find('#');
+      if (hash != std::string_view::npos) line = line.substr(0, hash);
       const bool continued = !line.empty() && line.back() == '\\';
       if (continued) line.remove_suffix(1);
       logical.append(line);
       if (!continued || pos >= bytes.size()) break;
       logical.push_back(' ');
     }
-    std::string_view text = logical;
-    const size_t comment = text.find('#');
-    if (comment != std::string_view::npos) text = text.substr(0, comment);
+    const std::string_view text = logical;
     tokens.clear();
     for (size_t k = 0; k < text.size();) {
       while (k < text.size() && isSpace(text[k])) ++k;
@@ -689,7 +713,7 @@ std::vector<PolygonMesh> readObj(std::string_view bytes) {
     const std::string_view keyword = tokens[0];
     if (keyword == "v") {
       const size_t n = tokens.size() - 1;
-      if (n != 3 && n != 4 && n != 6 && n != 7)
+      if (n != 3 && n != 4 && n != 6)
         refuse(at + "a vertex has " + std::to_string(n) +
                " numbers; expected 3 (x y z), 4 (x y z w) or 6 (x y z r g b)");
       double value[4] = {0, 0, 0, 1};
@@ -698,7 +722,7 @@ std::vector<PolygonMesh> readObj(std::string_view bytes) {
         if (!parseNumber(tokens[k + 1], v))
           refuse(at + "vertex " + std::to_string(mesh.vertexCount()) + " entry " + std::to_string(k) +
                  " must be a number, got " + quoted(tokens[k + 1]));
-        if (k < 3 || (k == 3 && n != 6)) value[k] = v;
+        if (k < 3 || (k == 3 && n == 4)) value[k] = v;
       }
       if (value[3] != 1)
         refuse(at + "vertex " + std::to_string(mesh.vertexCount()) + " has w = " + detail::number(value[3]) +
@@ -723,12 +747,13 @@ std::vector<PolygonMesh> readObj(std::string_view bytes) {
         const std::string_view token = tokens[k + 1];
         const std::string_view vertex = token.substr(0, token.find('/'));
         std::int64_t index = 0;
-        if (!parseWhole(vertex, index) || index == 0)
+        const bool signs = vertex.size() > 1 && vertex[0] == '+' && (vertex[1] == '-' || vertex[1] == '+');
+        if (signs || !parseWhole(vertex, index) || index == 0)
           refuse(at + "corner " + std::to_string(k) + " of a face must be a vertex number (1 is the first, -1 the " +
                  "last read), got " + quoted(token));
         const auto read = static_cast<std::int64_t>(mesh.vertexCount());
         if (index < 0) {
-          if (-index > read)
+          if (index < -read)
             refuse(at + "corner " + std::to_string(k) + " of a face is vertex " + std::to_string(index) + ", but " +
                    std::to_string(read) + " vertices are read so far");
           index = read + index;
@@ -781,7 +806,7 @@ void triangulatePolygon(const std::vector<double>& xyz, const std::uint32_t* cor
   int axis = 0;
   for (int a = 1; a < 3; ++a)
     if (std::abs(normal[a]) > std::abs(normal[axis])) axis = a;
-  if (!(std::abs(normal[axis]) > 0) || !std::isfinite(normal[axis])) {  // no area: a fan, cleaned away later
+  if (!(std::abs(normal[axis]) > 0) || !std::isfinite(normal[axis])) {  // no plane to cut in: a fan
     for (std::uint32_t k = 1; k + 1 < count; ++k) out.push_back({corners[0], corners[k], corners[k + 1]});
     return;
   }
@@ -802,35 +827,53 @@ void triangulatePolygon(const std::vector<double>& xyz, const std::uint32_t* cor
     prev[k] = k == 0 ? count - 1 : k - 1;
     next[k] = k + 1 == count ? 0 : k + 1;
   }
-  // Only a reflex corner can lie inside an ear; clipping ears makes no corner reflex.
+  // Only a reflex corner can lie inside an ear. The list is pruned as corners are cut off or
+  // turn convex (cutting an ear off a simple polygon turns no corner reflex).
   std::vector<std::uint32_t> reflex;
+  std::vector<char> isReflex(count, 0);
   for (std::uint32_t k = 0; k < count; ++k)
-    if (cross(prev[k], k, next[k]) <= 0) reflex.push_back(k);
-  std::vector<char> removed(count, 0);
+    if (cross(prev[k], k, next[k]) <= 0) {
+      reflex.push_back(k);
+      isReflex[k] = 1;
+    }
   const auto same = [&](std::uint32_t a, std::uint32_t b) { return u[a] == u[b] && v[a] == v[b]; };
+  // The ear tests' work is bounded (a polygon crossing itself, built against this, could
+  // take n^3 steps): past the budget, or after a whole round with no ear, the rest is a fan.
+  std::uint64_t budget = 64 * static_cast<std::uint64_t>(count) * (reflex.size() + 16);
   const auto isEar = [&](std::uint32_t b) {
     const std::uint32_t a = prev[b], c = next[b];
     if (!(cross(a, b, c) > 0)) return false;
+    budget -= std::min<std::uint64_t>(budget, reflex.size() + 1);
     for (const std::uint32_t r : reflex) {
-      if (removed[r] || r == a || r == b || r == c || same(r, a) || same(r, b) || same(r, c)) continue;
+      if (r == a || r == b || r == c || same(r, a) || same(r, b) || same(r, c)) continue;
       if (cross(a, b, r) >= 0 && cross(b, c, r) >= 0 && cross(c, a, r) >= 0) return false;
     }
     return true;
   };
-  const auto clip = [&](std::uint32_t b) {
-    out.push_back({corners[prev[b]], corners[b], corners[next[b]]});
-    removed[b] = 1;
-    next[prev[b]] = next[b];
-    prev[next[b]] = prev[b];
+  const auto prune = [&](std::uint32_t k) {  // k was cut off, or may have turned convex
+    if (isReflex[k] && (next[prev[k]] != k || cross(prev[k], k, next[k]) > 0)) {
+      isReflex[k] = 0;
+      reflex.erase(std::find(reflex.begin(), reflex.end(), k));
+    }
   };
   std::uint32_t remaining = count, k = 0, tried = 0;
   while (remaining > 3) {
-    if (isEar(k) || tried > remaining) {  // (no ear in a whole round: the polygon crosses itself)
-      const std::uint32_t after = next[k];
-      clip(k);
-      k = after;
+    if (tried >= remaining || budget == 0) {  // no ear left to find: the rest as a fan
+      for (std::uint32_t j = next[k]; next[j] != k; j = next[j])
+        out.push_back({corners[k], corners[j], corners[next[j]]});
+      return;
+    }
+    if (isEar(k)) {
+      const std::uint32_t before = prev[k], after = next[k];
+      out.push_back({corners[before], corners[k], corners[after]});
+      next[before] = after;
+      prev[after] = before;
+      prune(k);
+      prune(before);
+      prune(after);
       --remaining;
       tried = 0;
+      k = before;  // the corner before may have become an ear
     } else {
       k = next[k];
       ++tried;

@@ -52,6 +52,9 @@ std::vector<PolygonMesh> readPly(std::string_view bytes);
 /// negative ones counted back from the last vertex read); `p` and `l` statements are
 /// counted, texture coordinates, normals, groups and materials ignored.
 std::vector<PolygonMesh> readObj(std::string_view bytes);
+/// Whether `head` (a file's first bytes) starts like an OBJ file: its first statement that is
+/// not a comment is an OBJ keyword (v, vt, vn, f, o, g, mtllib, ...).
+bool looksLikeObj(std::string_view head);
 
 /// Appends the triangles of polygon `corners[0..count)` (indices into `xyz`, 3 doubles a
 /// vertex) to `out`, in the polygon's winding: ear clipping in the plane of its Newell

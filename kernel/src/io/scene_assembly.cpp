@@ -25,7 +25,12 @@ namespace {
 /// metres, as the scene's lengths are, and the mesh is cleaned before it is scaled, in its
 /// file's units. (A scale that is not a positive number is refused where it is used.)
 MeshCleanOptions inFileUnits(MeshCleanOptions clean, double scale) {
-  if (std::isfinite(scale) && scale > 0) clean.weldTolerance /= scale;
+  if (!(std::isfinite(scale) && scale > 0)) return clean;
+  const double tolerance = clean.weldTolerance / scale;
+  if (!std::isfinite(tolerance))
+    throw std::invalid_argument("weld_tolerance " + fmt(clean.weldTolerance) + " m / scale " + fmt(scale) +
+                                " must be finite: the weld tolerance in the file's units overflows");
+  clean.weldTolerance = tolerance;
   return clean;
 }
 

@@ -8,7 +8,7 @@ outside (normals out). Closed, so the kernel knows its inside. Deterministic: ru
 again gives the same file byte for byte.
 
 The built-in scene `weft run drape-mesh` embeds this very file when weft::io is built
-(kernel/CMakeLists.txt), and imports it through assimp like tools/scenes/drape-mesh.json does.
+(kernel/CMakeLists.txt), and imports it with weft's OBJ reader like tools/scenes/drape-mesh.json does.
 
     python3 tools/scenes/meshes/make_torus_obj.py
 """

@@ -61,8 +61,8 @@ struct FrameTopology {
   std::vector<std::array<Index, 2>> lines;
 };
 
-/// The model's triangles (cloth), and as lines the Structural springs with an end in no
-/// triangle (ropes, and links from a rope to a cloth).
+/// The model's triangles (cloth), and as lines the Structural springs that are no triangle's
+/// edge (ropes, links from a rope to a cloth, stitches between cloths).
 template <class S>
 FrameTopology frameTopology(const Model<S>& model);
 

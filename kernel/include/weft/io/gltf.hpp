@@ -76,7 +76,7 @@ struct GltfOptions {
 template <class S>
 class GltfAnimationWriter {
  public:
-  /// Validates the topology against particleCount (>= 1) and creates the frame file
+  /// Validates the topology against particleCount (>= 1; triangles or lines, not both) and creates the frame file
   /// `path + ".frames.tmp"` (an unwritable place fails here, before any frame).
   GltfAnimationWriter(std::string path, Index particleCount, FrameTopology topology, GltfOptions options = {});
   ~GltfAnimationWriter();

@@ -25,15 +25,15 @@
 //
 // Orientation is assimp's, which is weft's (y up, gravity along -y): files in a z-up
 // format are turned by their reader, e.g. the 3DS reader maps a file's (x, y, z) to
-// (x, z, -y); PLY and STL arrive as written. Units are the file's, read as metres
+// (x, z, -y); PLY, STL and OBJ arrive as written. Units are the file's, read as metres
 // (ClothMeshSpec::scale converts).
 //
 // Errors are std::runtime_error messages that start with "mesh file '<path>': ": the file
 // is missing or cannot be opened (with strerror), is a directory, is empty, cannot be read
-// (assimp's error string, or for PLY and STL the reader's own message: "PLY header line 3:
-// ...", "PLY face 7 corner 2: vertex index must be ...", "ASCII STL line 12: expected
-// 'endloop', got ..."), or has no triangles (with the numbers of points and lines it has
-// instead). loadCleanMesh reports what cleanMesh finds wrong with the file's contents (a
+// (assimp's error string, or for PLY, STL and OBJ the reader's own message: "PLY header
+// line 3: ...", "PLY face 7 corner 2: vertex index must be ...", "ASCII STL line 12:
+// expected 'endloop', got ...", "OBJ line 4: a face names vertex 9, ..."), or has no triangles (with the numbers of
+// points and lines it has instead). loadCleanMesh reports what cleanMesh finds wrong with the file's contents (a
 // coordinate that is not finite, no triangle left) the same way: std::runtime_error, the
 // file name in front of cleanMesh's message. A bad MeshCleanOptions is the caller's error:
 // std::invalid_argument, before the file is read.

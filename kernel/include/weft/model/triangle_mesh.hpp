@@ -5,7 +5,7 @@
 // A TriangleMesh is what a mesh file or a program hands to the cloth builder: vertex
 // positions (m) and triangles as three vertex indices, counter-clockwise seen from the
 // side the normal (b - a) x (c - a) points to. Files rarely come clean: readers duplicate
-// vertices (assimp gives every face corner of an OBJ or 3DS file its own vertex), modellers
+// vertices (assimp gives every face corner of a 3DS file its own vertex), modellers
 // leave zero-area slivers, repeated faces and edges shared by more than two faces.
 // cleanMesh turns such input into a mesh the cloth builder can trust and reports what it
 // did, count by count, in a MeshReport:
