@@ -237,8 +237,8 @@ TriangleMesh trianglesOf(std::vector<io_detail::PolygonMesh> meshes, const std::
 }
 
 /// weft's own reader for a file named `name` with first bytes `head` of `size` bytes: by
-/// extension (ply, stl, obj), or for a name assimp does not know by the bytes (PLY, STL);
-/// null for the formats assimp reads.
+/// extension (ply, stl, obj), or for a name assimp does not know by the bytes (PLY, STL,
+/// OBJ); null for the formats assimp reads.
 WeftLoader::Read ownReader(const std::string& name, std::string_view head, std::uint64_t size) {
   std::string extension = std::filesystem::path(name).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -249,6 +249,7 @@ WeftLoader::Read ownReader(const std::string& name, std::string_view head, std::
   if (!extension.empty() && probe.IsExtensionSupported(extension)) return nullptr;
   if (io_detail::startsLikePly(head)) return io_detail::readPly;
   if (io_detail::looksLikeStl(head, size)) return io_detail::readStl;
+  if (io_detail::looksLikeObj(head)) return io_detail::readObj;
   return nullptr;
 }
 
