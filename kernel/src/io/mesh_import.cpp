@@ -11,7 +11,6 @@
 #include <assimp/IOStream.hpp>
 #include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
-#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -240,11 +239,9 @@ TriangleMesh trianglesOf(std::vector<io_detail::PolygonMesh> meshes, const std::
 /// extension (ply, stl, obj), or for a name assimp does not know by the bytes (PLY, STL,
 /// OBJ); null for the formats assimp reads.
 WeftLoader::Read ownReader(const std::string& name, std::string_view head, std::uint64_t size) {
-  std::string extension = std::filesystem::path(name).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (extension == ".ply") return io_detail::readPly;
-  if (extension == ".stl") return io_detail::readStl;
-  if (extension == ".obj") return io_detail::readObj;
+  if (const char* format = io_detail::ownFormatByName(name))
+    return format[0] == 'p' ? io_detail::readPly : format[0] == 's' ? io_detail::readStl : io_detail::readObj;
+  const std::string extension = std::filesystem::path(name).extension().string();
   Assimp::Importer probe;
   if (!extension.empty() && probe.IsExtensionSupported(extension)) return nullptr;
   if (io_detail::startsLikePly(head)) return io_detail::readPly;

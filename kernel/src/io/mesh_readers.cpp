@@ -648,6 +648,15 @@ std::vector<PolygonMesh> readStl(std::string_view bytes) {
 // ---------------------------------------------------------------------------------------
 // OBJ
 
+const char* ownFormatByName(std::string_view name) {
+  const size_t dot = name.find_last_of("./");
+  if (dot == std::string_view::npos || name[dot] != '.') return nullptr;
+  const std::string_view extension = name.substr(dot + 1);
+  for (const char* format : {"ply", "stl", "obj"})
+    if (equalsIgnoringCase(extension, format)) return format;
+  return nullptr;
+}
+
 bool looksLikeObj(std::string_view head) {
   // The first statement that is not a comment: an OBJ keyword followed by white space.
   static constexpr std::string_view kKeywords[] = {"v", "vt", "vn", "vp", "f",      "l",

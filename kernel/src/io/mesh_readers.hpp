@@ -52,6 +52,9 @@ std::vector<PolygonMesh> readPly(std::string_view bytes);
 /// negative ones counted back from the last vertex read); `p` and `l` statements are
 /// counted, texture coordinates, normals, groups and materials ignored.
 std::vector<PolygonMesh> readObj(std::string_view bytes);
+/// The format of weft's own readers that a file named `name` has by its extension ("ply",
+/// "stl" or "obj", in any case), or null (assimp's formats, or no extension).
+const char* ownFormatByName(std::string_view name);
 /// Whether `head` (a file's first bytes) starts like an OBJ file: its first statement that is
 /// not a comment is an OBJ keyword (v, vt, vn, f, o, g, mtllib, ...).
 bool looksLikeObj(std::string_view head);

@@ -2,12 +2,11 @@
 // and its particles, springs, triangles and heap (estimateSceneMemory), so that the
 // command line can refuse or warn about a scene before building it.
 #include <algorithm>
-#include <cctype>
 #include <cstdint>
-#include <filesystem>
 #include <limits>
 #include <string>
 
+#include "mesh_readers.hpp"
 #include "scene_internal.hpp"
 
 namespace weft {
@@ -100,11 +99,7 @@ constexpr double kBytesPerRigidBody = 6500;
 
 /// Whether assimp reads the mesh file `name` (weft reads PLY, STL and OBJ itself; a name
 /// without one of their extensions is counted as assimp's, the larger estimate).
-bool readByAssimp(const std::string& name) {
-  std::string extension = std::filesystem::path(name).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension != ".ply" && extension != ".stl" && extension != ".obj";
-}
+bool readByAssimp(const std::string& name) { return io_detail::ownFormatByName(name) == nullptr; }
 }  // namespace
 
 MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
