@@ -440,6 +440,88 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   std::filesystem::remove_all(dir);
 }
 
+// Frame k is step k x --every, also across --resume: a resumed run whose frames would
+// write over the ones on disk or leave a gap (another --every, another format) is refused
+// before its first step, and the files stay as they were.
+TEST(Cli, ResumedFramesContinueTheNumberingOrAreRefused) {
+  const std::filesystem::path dir = ::testing::TempDir() + "weft_cli_resume_frames";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string checkpoint = (dir / "run.wckpt").string(), frames = (dir / "frames").string();
+  const auto count = [&] {
+    std::int64_t n = 0;
+    for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(frames)) ++n;
+    return n;
+  };
+  const nlohmann::json first =
+      runJson("run flag --size 8 --steps 30 --every 10 --out " + frames + " --checkpoint " + checkpoint);
+  EXPECT_EQ(first["frames_written"], 4);
+  ASSERT_EQ(count(), 4);
+  const std::string resume = "run flag --size 8 --steps 60 --resume " + checkpoint + " --out " + frames;
+  const CliRun over = weft(resume + " --every 20", true);
+  EXPECT_EQ(over.exitCode, 2) << over.out;
+  EXPECT_NE(over.out.find("end at frame_000003.obj, and this run continues from step 30 and writes frame_000002.obj "
+                          "next (frame k is step k x --every 20): it would write over frames"),
+            std::string::npos)
+      << over.out;
+  const CliRun gap = weft(resume + " --every 5", true);
+  EXPECT_EQ(gap.exitCode, 2) << gap.out;
+  EXPECT_NE(gap.out.find("writes frame_000007.obj next (frame k is step k x --every 5): it would leave frames missing"),
+            std::string::npos)
+      << gap.out;
+  const CliRun format = weft(resume + " --every 10 --format ply", true);
+  EXPECT_EQ(format.exitCode, 2) << format.out;
+  EXPECT_NE(format.out.find("holds frame_000000.obj, and this run writes ply frames"), std::string::npos) << format.out;
+  EXPECT_EQ(count(), 4) << "a refused run wrote frames";
+  // With the --every it began with, it continues the numbering; into an empty directory too.
+  const nlohmann::json same = runJson(resume + " --every 10");
+  EXPECT_EQ(same["frames_written"], 7);
+  EXPECT_EQ(count(), 7);
+  const std::string fresh = (dir / "fresh").string();
+  const nlohmann::json elsewhere =
+      runJson("run flag --size 8 --steps 60 --resume " + checkpoint + " --out " + fresh + " --every 20");
+  EXPECT_TRUE(std::filesystem::exists(fresh + "/frame_000002.obj"));
+  EXPECT_TRUE(std::filesystem::exists(fresh + "/frame_000003.obj"));
+  std::filesystem::remove_all(dir);
+}
+
+// Settings of a scene file that the run does not read are named on stderr and listed in
+// the summary; the same settings given on the command line are refused (their tests are
+// CliBadOption's rows).
+TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
+  const std::filesystem::path dir = ::testing::TempDir() + "weft_cli_unused";
+  std::filesystem::create_directories(dir);
+  const std::string file = (dir / "unused.json").string();
+  std::ofstream(file) << R"({"name": "unused", "dt": 0.001, "steps": 2,
+    "bodies": [{"type": "rope", "particles": 5}],
+    "integrator": "rk4",
+    "integration": {"rtol": 1e-4, "cg_tolerance": 1e-3, "projective_iterations": 4},
+    "self_collision": {}, "stability": {"enabled": false, "max_stretch": 3},
+    "output": {"every": 5}})";
+  const nlohmann::json j = runJson("run " + file);
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["unused_settings"],
+            (nlohmann::json{"integration.rtol applies to rk45, and this run integrates with rk4",
+                            "integration.cg_tolerance applies to implicit, and this run integrates with rk4",
+                            "integration.projective_iterations applies to projective, and this run integrates with rk4",
+                            "self_collision applies to cloth (its triangles), and the scene 'unused' has none",
+                            "stability.max_stretch applies to the stability check, and stability.enabled is false",
+                            "output.every applies to frames (output.directory or --out), and this run writes none"}))
+      << j["unused_settings"].dump();
+  const CliRun noted = weft("run " + file, true);
+  EXPECT_EQ(noted.exitCode, 0) << noted.out;
+  EXPECT_NE(noted.out.find("weft run: note: integration.rtol applies to rk45, and this run integrates with rk4 (not "
+                           "used)"),
+            std::string::npos)
+      << noted.out;
+  // With the integrator that reads it, rtol is not listed; the others still are.
+  const nlohmann::json rk45 = runJson("run " + file + " --integrator rk45");
+  EXPECT_EQ(rk45["unused_settings"].size(), 5u) << rk45["unused_settings"].dump();
+  // A scene that uses everything it sets lists nothing.
+  EXPECT_EQ(runJson("run flag --size 8 --steps 2")["unused_settings"], nlohmann::json::array());
+  std::filesystem::remove_all(dir);
+}
+
 // `weft soak`, short: each scene on 1 and 2 threads, one row with the checks.
 TEST(Cli, SoakRunsEachSceneOnBothThreadCountsAndChecksIt) {
   const CliRun r = weft("soak --seconds 0.05 --scene drape --scene stack --scene twist", true);
@@ -658,6 +740,24 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"flag --size 0b11", "--size", "must be a whole number in base 10, got 0b11"},
         BadOption{"flag --szie 32", "--szie", "did you mean --size?"},
         BadOption{"flag --time-of-impact later", "--time-of-impact", "later"},
+        // Options the run would not read are refused, not ignored.
+        BadOption{"flag --integrator euler --rtol 1e-3", "--rtol", "this run integrates with euler"},
+        BadOption{"flag --atol 1e-3", "--atol", "this run integrates with rk4"},
+        BadOption{"flag --fixed-step", "--fixed-step", "--integrator rk45"},
+        BadOption{"flag --integrator rk45 --fixed-step --rtol 1e-3", "--rtol", "takes fixed rk45 steps"},
+        BadOption{"flag --integrator projective --cg-tolerance 1e-3", "--cg-tolerance", "integrates with projective"},
+        BadOption{"flag --cg-preconditioner multigrid", "--cg-preconditioner", "--integrator implicit"},
+        BadOption{"flag --cg-max-iterations 5", "--cg-max-iterations", "--integrator implicit"},
+        BadOption{"flag --integrator implicit --pd-iterations 3", "--pd-iterations", "integrates with implicit"},
+        BadOption{"flag --narrow-phase ofg", "--narrow-phase", "the scene 'flag' has no rigid bodies"},
+        BadOption{"drape --time-of-impact rollback", "--time-of-impact", "the scene 'drape' has no rigid bodies"},
+        BadOption{"stack --ofg-faces 4", "--ofg-faces", "this run uses witness"},
+        BadOption{"stack --narrow-phase ofg --ofg-faces 65", "--ofg-faces", "65"},
+        BadOption{"bullet --integrator rk45", "--integrator", "the scene 'bullet' has none"},
+        BadOption{"stack --precision float", "--precision", "run in double"},
+        BadOption{"pile --drag 1", "--drag", "has none"},
+        BadOption{"slope --strategy gather", "--strategy", "has none"},
+        BadOption{"ball-on-brick --size 4", "size", "fixed layout"},
         BadOption{"flag rope", "unexpected argument", "rope"}),
     [](const auto& info) {
       std::string name = info.param.args;

@@ -265,6 +265,27 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   o = stackScene(2);
   o.bodies[1].restitution = 2;
   expectInvalid(o, "rigid.bodies[1].restitution must be in [0, 1], got 2");
+  // What a body or the world would not use is refused, not dropped (bodies[0] is the
+  // stack's static floor).
+  o = stackScene(2);
+  o.bodies[0].velocity = {1, 0, 0};
+  expectInvalid(o, "rigid.bodies[0].velocity must be zero for a static body (it does not move), got (1, 0, 0)");
+  o = stackScene(2);
+  o.bodies[1].motion = BodyMotion::Kinematic;
+  o.bodies[1].angularVelocity = {0, 0, 2};
+  expectInvalid(o, "rigid.bodies[1].angularVelocity must be zero for a kinematic body (it moves by its path)");
+  o = stackScene(2);
+  o.bodies[0].mass = 4;
+  expectInvalid(o,
+                "rigid.bodies[0].mass must be zero for a static body (it does not move); only dynamic bodies "
+                "have a mass, got 4");
+  o = stackScene(2);
+  o.timeOfImpact = RigidTimeOfImpact::Rollback;
+  o.continuous = false;
+  expectInvalid(o, "rigid.continuous must be true with timeOfImpact rollback");
+  o = stackScene(2);
+  o.narrowPhase.ofgFaces = kMaxOfgFaces + 1;  // (the OFG's arrays hold kMaxOfgFaces)
+  expectInvalid(o, "rigid.narrowPhase.ofgFaces must be in [1, 64], got 65");
   o = stackScene(2);
   o.velocityIterations = 0;
   expectInvalid(o, "rigid.velocityIterations must be in [1, 1000], got 0");

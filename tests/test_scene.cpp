@@ -419,16 +419,15 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
     "bodies": [
       {"type": "rope", "name": "line", "particles": 10, "origin": [1, 2, 3], "direction": [0, 0, 2],
        "length": 2.5, "particle_mass": 0.01, "bend_springs": false,
-       "materials": {"structural": {"stiffness": 700, "damping": 0.07}, "bend": {"stiffness": 7, "damping": 0.007}},
+       "materials": {"structural": {"stiffness": 700, "damping": 0.07}},
        "pins": [9, {"particles": [0, 1], "path": {"velocity": [0.1, 0.2, 0.3], "angular_velocity": 0.5,
                                                   "axis": [1, 0, 0], "center": [1, 2, 3], "start": 0.25, "end": 0.75}}]},
       {"type": "cloth_grid", "name": "sheet", "width": 5, "height": 4, "origin": [0, 3, 0], "row_axis": [0, 0, 1],
-       "column_axis": [0, -1, 0], "spacing": 0.1, "total_mass": 0.2, "shear_springs": false, "bend_springs": false,
-       "materials": {"structural": {"stiffness": 11, "damping": 0.11}, "shear": {"stiffness": 12, "damping": 0.12},
-                     "bend": {"stiffness": 13, "damping": 0.13}},
+       "column_axis": [0, -1, 0], "spacing": 0.1, "total_mass": 0.2, "shear_springs": false, "bend_springs": true,
+       "materials": {"structural": {"stiffness": 11, "damping": 0.11}, "bend": {"stiffness": 13, "damping": 0.13}},
        "pins": [{"box": {"min": [-1, 2.95, -1], "max": [1, 3.05, 1]}}]},
       {"type": "cloth_mesh", "name": "disc", "mesh": "meshes/cloth.obj", "weld_tolerance": 0.001, "scale": 0.02,
-       "translate": [4, 5, 6], "areal_density": 0.3, "bend_springs": false,
+       "translate": [4, 5, 6], "areal_density": 0.3, "bend_springs": true,
        "materials": {"structural": {"stiffness": 21, "damping": 0.21}, "bend": {"stiffness": 22, "damping": 0.22}}}
     ],
     "integrator": "implicit", "dt": 0.004, "steps": 77, "precision": "float", "threads": 3,
@@ -458,8 +457,6 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   EXPECT_FALSE(rope.rope.bendSprings);
   EXPECT_EQ(rope.rope.structural.stiffness, 700);
   EXPECT_EQ(rope.rope.structural.damping, 0.07);
-  EXPECT_EQ(rope.rope.bend.stiffness, 7);
-  EXPECT_EQ(rope.rope.bend.damping, 0.007);
   ASSERT_EQ(rope.pins.size(), 2u);  // one PinSpec per element of pins, in order
   EXPECT_EQ(rope.pins[0].particles, std::vector<Index>{9});
   EXPECT_FALSE(rope.pins[0].path);
@@ -484,9 +481,8 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   EXPECT_EQ(grid.grid.spacing, 0.1);
   EXPECT_EQ(grid.grid.totalMass, 0.2);
   EXPECT_FALSE(grid.grid.shearSprings);
-  EXPECT_FALSE(grid.grid.bendSprings);
+  EXPECT_TRUE(grid.grid.bendSprings);
   EXPECT_EQ(grid.grid.structural.stiffness, 11);
-  EXPECT_EQ(grid.grid.shear.damping, 0.12);
   EXPECT_EQ(grid.grid.bend.stiffness, 13);
   EXPECT_EQ(grid.grid.bend.damping, 0.13);
   ASSERT_EQ(grid.pins.size(), 1u);
@@ -504,7 +500,7 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   EXPECT_EQ(mesh.mesh.scale, 0.02);
   EXPECT_EQ(mesh.mesh.translate.z, 6);
   EXPECT_EQ(mesh.mesh.arealDensity, 0.3);
-  EXPECT_FALSE(mesh.mesh.bendSprings);
+  EXPECT_TRUE(mesh.mesh.bendSprings);
   EXPECT_EQ(mesh.mesh.structural.damping, 0.21);
   EXPECT_EQ(mesh.mesh.bend.stiffness, 22);
   EXPECT_TRUE(mesh.pins.empty());
@@ -696,6 +692,17 @@ TEST(SceneReader, RigidQuaternionsAreUsedExactlyAsWritten) {
   EXPECT_TRUE(b.shapes.at(0).rotation.vec().isZero(0));
 }
 
+// Only a number that is not zero as written and reads as 0 is refused: a zero written with
+// any exponent, a small number a double holds, and digits inside strings are not.
+TEST(SceneReader, ZerosAndSmallNumbersAreReadAsWritten) {
+  const SceneSpec s = parseScene(R"({"name": "1e-400", "dt": 1e-3, "steps": 1,
+      "bodies": [{"type": "rope", "name": "r 5e-999", "origin": [0.0e-999, 1e-320, -0e+5]}]})");
+  EXPECT_EQ(s.name, "1e-400");
+  EXPECT_EQ(s.bodies[0].rope.origin.x, 0.0);
+  EXPECT_EQ(s.bodies[0].rope.origin.y, 1e-320);
+  EXPECT_EQ(s.bodies[0].rope.origin.z, 0.0);
+}
+
 TEST(SceneReader, StepCountSaturatesInsteadOfOverflowing) {
   SceneSpec s;
   s.simulation.dt = 1e-300;
@@ -751,6 +758,11 @@ const std::vector<BadScene>& badScenes() {
       {"empty", "", "malformed JSON", "end of input"},
       {"nan_literal", R"({"bodies": [{"type": "rope"}], "dt": NaN, "steps": 10})", "dt", R"(last read: '"dt": N')"},
       {"number_overflow", R"({"bodies": [{"type": "rope"}], "dt": 1e999, "steps": 10})", "dt", "1e999"},
+      // A number that reads as 0 is named as written, not as the 0 it became.
+      {"number_underflow", R"({"bodies": [{"type": "rope"}], "dt": 1e-400, "steps": 10})", "dt",
+       "the number 1e-400 is too small for a double and would be read as 0"},
+      {"number_underflow_in_an_array", rope(R"(, "origin": [0, -0.00000000000000000001e-320, 0])"),
+       "bodies[0].origin[1]", "the number -0.00000000000000000001e-320 is too small"},
       {"negative_number_overflow", rope(R"(, "origin": [0, -1e999, 0])"), "bodies[0].origin[1]", "-1e999"},
       {"duplicate_key", top(R"(, "dt": 1)"), "dt", "duplicate key"},
       {"too_deep", std::string(40, '[') + std::string(40, ']'), "[0][0]", "nesting deeper than 32"},
@@ -1043,6 +1055,27 @@ const std::vector<BadScene>& badScenes() {
        "must be in [0, 30], got 40"},
       {"rigid_particle_supports_not_bool", rigid("", R"("particle_supports": 1, )"), "rigid_bodies.particle_supports",
        "must be true or false"},
+      // A setting that would not be used is refused, not dropped.
+      {"rigid_static_velocity", rigid(R"(, "motion": "static", "velocity": [1, 0, 0])"),
+       "rigid_bodies.bodies[1].velocity", "must be zero for a static body (it does not move), got (1, 0, 0)"},
+      {"rigid_kinematic_spin", rigid(R"(, "motion": "kinematic", "angular_velocity": [0, 2, 0])"),
+       "rigid_bodies.bodies[1].angular_velocity", "must be zero for a kinematic body (it moves by its path)"},
+      {"rigid_kinematic_mass", rigid(R"(, "motion": "kinematic", "mass": 3)"), "rigid_bodies.bodies[1].mass",
+       "only dynamic bodies have a mass, got 3"},
+      {"rigid_static_density", rigid(R"(, "motion": "static", "density": 300)"), "rigid_bodies.bodies[1].density",
+       "is for dynamic bodies only (motion is static"},
+      {"rigid_rollback_not_continuous", rigid("", R"("time_of_impact": "rollback", "continuous": false, )"),
+       "rigid_bodies.continuous", "must be true with timeOfImpact rollback"},
+      {"rigid_supports_without_contacts", rigid("", R"("particle_contacts": false, "particle_supports": true, )"),
+       "rigid_bodies.particle_supports", "needs particle_contacts"},
+      {"rigid_ofg_faces_above_its_arrays", rigid("", R"("narrow_phase": "ofg", "ofg_faces": 65, )"),
+       "rigid_bodies.ofg_faces", "65"},
+      {"shear_material_without_shear_springs",
+       grid(R"(, "shear_springs": false, "materials": {"shear": {"stiffness": 10}})"), "bodies[0].materials.shear",
+       "is for shear springs, and shear_springs is false"},
+      {"bend_material_without_bend_springs",
+       rope(R"(, "bend_springs": false, "materials": {"bend": {"stiffness": 1}})"), "bodies[0].materials.bend",
+       "is for bend springs, and bend_springs is false"},
       {"no_bodies_at_all", R"({"dt": 0.01, "steps": 10})", "bodies", "is required (or rigid_bodies)"},
       // Ranges the kernel checks (Reader::kernelRules): its message at the file's field, with
       // the value as the file wrote it (not 17 digits), obstacles numbered as in the file.

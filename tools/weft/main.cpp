@@ -276,7 +276,8 @@ int main(int argc, char** argv) {
   cmd->add_option("--integrator", run.integrator,
                   "euler | symplectic | midpoint | rk4 | verlet | rk45 | implicit | projective")
       ->check(CLI::IsMember(integrators));
-  cmd->add_option("--rtol", run.relativeTolerance, "rk45: relative tolerance per coordinate (>= 0)")
+  cmd->add_option("--rtol", run.relativeTolerance,
+                  "rk45: relative tolerance per coordinate (>= 0; at least 64 machine epsilons are used)")
       ->check(finiteNonNegative);
   cmd->add_option("--atol", run.absoluteTolerance, "rk45: absolute tolerance per coordinate, m and m/s (> 0)")
       ->check(finitePositive);
@@ -309,8 +310,8 @@ int main(int argc, char** argv) {
                   "Rigid bodies: exact (separating axes) | ofg (Opposing Face Geometry) | witness (cached "
                   "separating plane, default)")
       ->check(CLI::IsMember({"exact", "ofg", "witness"}));
-  cmd->add_option("--ofg-faces", run.ofgFaces, "Rigid bodies: faces per side the Opposing Face Geometry keeps (k >= 1)")
-      ->check(CLI::Range(1, 1024));
+  cmd->add_option("--ofg-faces", run.ofgFaces, "Rigid bodies: faces per side the Opposing Face Geometry keeps (1..64)")
+      ->check(CLI::Range(1, weft::kMaxOfgFaces));
   cmd->add_option("--max-memory", run.maxMemory,
                   "MiB the run may take (default: what the machine has available); a scene that needs more "
                   "is refused before anything is allocated")

@@ -193,6 +193,54 @@ class FrameSink {
   std::int64_t written_ = 0;
 };
 
+/// Frame k of a run is its step k x every, also across --resume: the frames already in the
+/// directory must end just before the one the resumed run writes next. Otherwise they came
+/// from a run with another --every or from beyond the checkpoint, and the run would write
+/// over them or leave a gap; it is refused before the first step.
+void checkResumedFrames(const weft::OutputSpec& output, std::int64_t step) {
+  const std::int64_t next = step / output.every + 1;
+  const auto frameName = [&](std::int64_t k) {
+    char name[48];
+    std::snprintf(name, sizeof name, "frame_%06lld.%s", static_cast<long long>(k), output.format.c_str());
+    return std::string(name);
+  };
+  std::int64_t highest = -1, otherLowest = -1;
+  std::string other;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(output.directory, error)) {
+    const std::string name = entry.path().filename().string();
+    const std::string ext = entry.path().extension().string();
+    if (!name.starts_with("frame_") || (ext != ".obj" && ext != ".ply")) continue;
+    const std::string digits = name.substr(6, name.size() - 6 - ext.size());
+    std::int64_t k = 0;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), k);
+    if (digits.empty() || ec != std::errc() || end != digits.data() + digits.size()) continue;
+    if (ext != "." + output.format) {
+      if (otherLowest < 0 || k < otherLowest) otherLowest = k, other = name;  // (the same file whatever the order)
+      continue;
+    }
+    highest = std::max(highest, k);
+  }
+  if (otherLowest >= 0)
+    throw std::invalid_argument("--resume: the frame directory '" + output.directory + "' holds " + other +
+                                ", and this run writes " + output.format +
+                                " frames: resume with the format the run began with (--format), or into another "
+                                "directory (--out)");
+  if (highest < 0 || highest == next - 1) return;
+  std::ostringstream msg;
+  msg << "--resume: the frames in '" << output.directory << "' end at " << frameName(highest)
+      << ", and this run continues from step " << step << " and writes " << frameName(next) << " next (frame k is step "
+      << "k x --every " << output.every
+      << "): " << (highest >= next ? "it would write over frames " : "it would leave frames missing ")
+      << "(were they written with another --every, or after the checkpoint?); resume with the --every the run began "
+      << "with, into another directory (--out), or after moving ";
+  if (highest >= next)
+    msg << "the frames after " << frameName(next - 1) << " away";
+  else
+    msg << "those frames away";
+  throw std::invalid_argument(msg.str());
+}
+
 /// A one-line progress bar on stdout, drawn only when stdout is a terminal and only once
 /// the run has taken more than a second.
 class Progress {
@@ -225,6 +273,113 @@ class Progress {
   double lastDraw_ = 0;
   bool drawn_ = false;
 };
+
+}  // namespace
+
+namespace {
+
+/// An option given on the command line that this run would not read is refused, naming
+/// the option and what it needs: `--rtol` with euler would otherwise run as if it were not
+/// there, and the user would believe the tolerance was applied.
+void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec) {
+  const weft::IntegratorKind integrator = spec.simulation.integrator;
+  const auto refuse = [](const char* option, const std::string& needs, const std::string& instead) {
+    throw std::invalid_argument(std::string(option) + " applies to " + needs + ", and " + instead +
+                                ": drop the option or change the run");
+  };
+  // Rigid bodies always run in double with their own solver: the particles' settings have
+  // nothing to act on in a scene without particles.
+  if (spec.bodies.empty()) {
+    const std::string none =
+        "the scene '" + spec.name + "' has none (its rigid bodies run in double with their own solver)";
+    const char* particles = "particles (cloth and ropes)";
+    if (o.integrator) refuse("--integrator", particles, none);
+    if (o.precision) refuse("--precision", particles, none);
+    if (o.drag) refuse("--drag", particles, none);
+    if (o.strategy) refuse("--strategy", particles, none);
+  }
+  const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
+  const bool rk45 = integrator == weft::IntegratorKind::Rk45;
+  const bool implicit = integrator == weft::IntegratorKind::ImplicitEuler;
+  const bool adaptive = spec.simulation.integration.adaptive;
+  const std::string fixed = "this run takes fixed rk45 steps (--fixed-step or integration.adaptive false)";
+  if (o.relativeTolerance && rk45 && !adaptive) refuse("--rtol", "rk45's error control", fixed);
+  if (o.absoluteTolerance && rk45 && !adaptive) refuse("--atol", "rk45's error control", fixed);
+  if (o.relativeTolerance && !rk45) refuse("--rtol", "--integrator rk45", integrates);
+  if (o.absoluteTolerance && !rk45) refuse("--atol", "--integrator rk45", integrates);
+  if (o.fixedStep && !rk45) refuse("--fixed-step", "--integrator rk45", integrates);
+  if (o.linearTolerance && !implicit) refuse("--cg-tolerance", "--integrator implicit", integrates);
+  if (o.maxLinearIterations && !implicit) refuse("--cg-max-iterations", "--integrator implicit", integrates);
+  if (o.preconditioner && !implicit) refuse("--cg-preconditioner", "--integrator implicit", integrates);
+  if (o.projectiveIterations && integrator != weft::IntegratorKind::Projective)
+    refuse("--pd-iterations", "--integrator projective", integrates);
+  const weft::RigidOptions& rigid = spec.simulation.rigid;
+  const std::string noBodies = "the scene '" + spec.name + "' has no rigid bodies";
+  if (o.narrowPhase && rigid.bodies.empty()) refuse("--narrow-phase", "scenes with rigid bodies", noBodies);
+  if (o.timeOfImpact && rigid.bodies.empty()) refuse("--time-of-impact", "scenes with rigid bodies", noBodies);
+  if (o.ofgFaces && rigid.bodies.empty()) refuse("--ofg-faces", "scenes with rigid bodies", noBodies);
+  if (o.ofgFaces && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg)
+    refuse("--ofg-faces", "the Opposing Face Geometry narrow phase (--narrow-phase ofg)",
+           std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
+}
+
+/// Settings of the scene file that this run does not read (the command line's are refused
+/// above, since a scene file may carry settings for several integrators and be run with
+/// --integrator): each is said on stderr and listed in the JSON summary.
+std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::SceneSpec& spec) {
+  std::vector<std::string> unused;
+  const weft::IntegratorKind integrator = spec.simulation.integrator;
+  const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
+  const weft::IntegratorOptions& io = spec.simulation.integration;
+  const weft::IntegratorOptions defaults;
+  const auto note = [&](bool set, const char* key, const char* needs, const std::string& instead) {
+    if (set) unused.push_back(std::string(key) + " applies to " + needs + ", and " + instead);
+  };
+  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive) {
+    const std::string fixed = "this run takes fixed rk45 steps (integration.adaptive false or --fixed-step)";
+    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45's error control", fixed);
+    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45's error control", fixed);
+    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45's error control", fixed);
+    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45's error control", fixed);
+  }
+  if (integrator != weft::IntegratorKind::Rk45) {
+    note(io.adaptive != defaults.adaptive, "integration.adaptive", "rk45", integrates);
+    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45", integrates);
+    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45", integrates);
+    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45", integrates);
+    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45", integrates);
+  }
+  if (integrator != weft::IntegratorKind::ImplicitEuler) {
+    note(io.linearTolerance != defaults.linearTolerance, "integration.cg_tolerance", "implicit", integrates);
+    note(io.maxLinearIterations != defaults.maxLinearIterations, "integration.cg_max_iterations", "implicit",
+         integrates);
+    note(io.preconditioner != defaults.preconditioner, "integration.cg_preconditioner", "implicit", integrates);
+  }
+  if (integrator != weft::IntegratorKind::Projective)
+    note(io.projectiveIterations != defaults.projectiveIterations, "integration.projective_iterations", "projective",
+         integrates);
+  const bool cloth = std::any_of(spec.bodies.begin(), spec.bodies.end(),
+                                 [](const weft::BodySpec& b) { return b.kind != weft::BodyKind::Rope; });
+  note(spec.simulation.selfCollision.enabled && !cloth, "self_collision", "cloth (its triangles)",
+       "the scene '" + spec.name + "' has none");
+  note(
+      !spec.simulation.stability.enabled && spec.simulation.stability.maxStretch != weft::StabilityOptions{}.maxStretch,
+      "stability.max_stretch", "the stability check", "stability.enabled is false");
+  const weft::RigidOptions& rigid = spec.simulation.rigid;
+  note(!rigid.bodies.empty() && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg &&
+           rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces,
+       "rigid_bodies.ofg_faces", "narrow_phase \"ofg\"",
+       std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
+  if (spec.output.directory.empty()) {
+    const weft::OutputSpec defaultOutput;
+    note(spec.output.format != defaultOutput.format, "output.format", "frames (output.directory or --out)",
+         "this run writes none");
+    // (A checkpoint's period is --every's only: the file's output.every sets the frames'.)
+    note(spec.output.every != defaultOutput.every && !o.every, "output.every", "frames (output.directory or --out)",
+         "this run writes none");
+  }
+  return unused;
+}
 
 }  // namespace
 
@@ -274,6 +429,7 @@ weft::SceneSpec sceneFor(const RunOptions& o) {
   if (o.out) spec.output.directory = *o.out;
   if (o.format) spec.output.format = *o.format;
   if (o.every) spec.output.every = *o.every;
+  refuseInapplicableOptions(o, spec);
   return spec;
 }
 
@@ -323,6 +479,8 @@ class SignalScope {
 
 template <class S>
 int run(const RunOptions& o, const weft::SceneSpec& spec) {
+  const std::vector<std::string> unused = unusedSceneSettings(o, spec);
+  for (const std::string& u : unused) std::cerr << "weft run: note: " << u << " (not used)\n";
   // Memory asked for before it is taken: what this process holds now plus what the scene
   // will, against what the machine has (or --max-memory).
   // Besides the scene's arrays, the first step's runtime (TBB's arena and threads, the
@@ -390,7 +548,10 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
                                   *o.checkpoint + ", or remove the file first");
   }
   std::optional<FrameSink<S>> frames;  // (its checks first: a refused run leaves no checkpoint behind)
-  if (!output.directory.empty()) frames.emplace(output, sim.model(), spec.name, steps);
+  if (!output.directory.empty()) {
+    frames.emplace(output, sim.model(), spec.name, steps);
+    if (o.resume) checkResumedFrames(output, sim.stepCount());
+  }
   // A first checkpoint before any step: a path that cannot be written fails now, not after
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);
@@ -492,6 +653,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["work_per_step"] = workJson(sim.totalWork(), done);
     j["work_total"] = workJson(sim.totalWork(), 1);
     j["effects"] = effects;
+    j["unused_settings"] = unused;
     // CPU seconds (summed over threads) spent in each effect the scene lists.
     nlohmann::ordered_json perEffect = nlohmann::ordered_json::object();
     for (const std::string& name : effects) perEffect[name] = effectSeconds(name);

@@ -20,6 +20,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -52,14 +53,74 @@ inline std::string displayKey(const std::string& key) {
 
 inline const char* typeName(const Json& j) { return j.type_name(); }
 
+/// A number of a JSON text that is not zero as written but may read as 0 in a double (below
+/// about 2.5e-324 in magnitude), found by its decimal order: `ordinal` counts the text's
+/// numbers from 0.
+struct TinyNumber {
+  std::size_t ordinal;
+  std::string text;
+};
+
+/// The numbers of `text` (outside strings) whose first non-zero digit is below 1e-300:
+/// the only ones that can underflow to 0. nlohmann reads those as 0 without a word, and a
+/// rule would then report "got 0" for a value the file does not hold.
+inline std::vector<TinyNumber> tinyNumbers(std::string_view text) {
+  std::vector<TinyNumber> out;
+  std::size_t ordinal = 0;
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  for (std::size_t i = 0; i < text.size();) {
+    if (text[i] == '"') {  // a string (a key or a value): its digits are no number
+      for (++i; i < text.size() && text[i] != '"'; ++i)
+        if (text[i] == '\\') ++i;
+      ++i;
+      continue;
+    }
+    if (text[i] != '-' && !digit(text[i])) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < text.size() &&
+           (digit(text[j]) || text[j] == '-' || text[j] == '+' || text[j] == '.' || text[j] == 'e' || text[j] == 'E'))
+      ++j;
+    const std::string_view token = text.substr(i, j - i);
+    i = j;
+    // The decimal order of the first non-zero digit: its place in the mantissa, plus the exponent.
+    const std::size_t e = std::min(token.find('e'), token.find('E'));
+    const std::string_view mantissa = token.substr(0, e);
+    const std::size_t point = std::min(mantissa.find('.'), mantissa.size());
+    long long first = 0;
+    bool nonZero = false;
+    for (std::size_t k = 0; k < mantissa.size() && !nonZero; ++k) {
+      if (!digit(mantissa[k])) continue;
+      if (mantissa[k] != '0') {
+        nonZero = true;
+        first = (k < point ? static_cast<long long>(point - k) - 1 : -static_cast<long long>(k - point));
+      }
+    }
+    long long exponent = 0;
+    if (e != std::string_view::npos) {
+      std::size_t k = e + 1;
+      const bool negative = k < token.size() && token[k] == '-';
+      if (k < token.size() && (token[k] == '-' || token[k] == '+')) ++k;
+      for (; k < token.size() && digit(token[k]); ++k) exponent = std::min(exponent * 10 + (token[k] - '0'), 100000LL);
+      if (negative) exponent = -exponent;
+    }
+    if (nonZero && first + exponent < -300) out.push_back({ordinal, std::string(token.substr(0, 60))});
+    ++ordinal;
+  }
+  return out;
+}
+
 /// Follows nlohmann's parser (as its parse callback) so that a syntax error can name the
 /// field it happened in (the parser itself gives only a line and column, or for a number
 /// that overflows, like 1e999, nothing). Also rejects what the DOM would hide or what
 /// later code should not have to survive: a key given twice in one object (nlohmann keeps
-/// the last silently) and nesting deeper than kMaxJsonDepth.
+/// the last silently), nesting deeper than kMaxJsonDepth, and a number that is not zero as
+/// written but reads as 0 (1e-400; nlohmann gives 0 without a word).
 class JsonPathTracker {
  public:
-  explicit JsonPathTracker(const std::string& source) : source_(source) {}
+  JsonPathTracker(const std::string& source, std::string_view text) : source_(source), tiny_(tinyNumbers(text)) {}
 
   bool operator()(int /*depth*/, Json::parse_event_t event, Json& parsed) {
     switch (event) {
@@ -79,6 +140,16 @@ class JsonPathTracker {
         break;
       }
       case Json::parse_event_t::value:
+        if (parsed.is_number()) {
+          if (nextTiny_ < tiny_.size() && tiny_[nextTiny_].ordinal == numbers_) {
+            if (parsed.is_number_float() && parsed.get<double>() == 0)
+              throw SceneError(source_ + ": " + where() + ": the number " + tiny_[nextTiny_].text +
+                               " is too small for a double and would be read as 0 (the smallest is about 4.9e-324): "
+                               "write 0 if 0 is meant");
+            ++nextTiny_;
+          }
+          ++numbers_;
+        }
         if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
         break;
       case Json::parse_event_t::object_end:
@@ -123,6 +194,9 @@ class JsonPathTracker {
   }
   const std::string& source_;
   std::vector<Frame> stack_;
+  std::vector<TinyNumber> tiny_;
+  std::size_t nextTiny_ = 0;  // the first of tiny_ not yet reached
+  std::size_t numbers_ = 0;   // numbers parsed so far
 };
 
 /// v / |v| exactly as weft's builders compute it (addRope, addClothGrid); false when |v|

@@ -55,131 +55,58 @@ void checkReadable(const std::string& path) {
   if (c == EOF) fail(path, "no triangles: the file is empty (0 bytes)");
 }
 
-/// One of weft's own readers (mesh_readers.hpp: PLY, STL, OBJ) as an assimp loader. loadMesh
-/// hands those files to the readers itself (trianglesOf, in double); Importer also takes
-/// assimp's loader for each of these formats out of the importer and puts this one in, so
-/// that assimp's own readers for them never see a file, whatever name it has.
-class WeftLoader final : public Assimp::BaseImporter {
- public:
-  using Read = std::vector<io_detail::PolygonMesh> (*)(std::string_view bytes);
+/// weft's own readers (mesh_readers.hpp): PLY, STL and OBJ in double, file order kept.
+using OwnRead = std::vector<io_detail::PolygonMesh> (*)(std::string_view bytes);
 
-  WeftLoader(const char* name, const char* extension, Read read) : read_(read), extension_(extension) {
-    desc_.mName = name;
-    desc_.mAuthor = "weft";
-    desc_.mMaintainer = "weft";
-    desc_.mComments = "weft's own reader (kernel/src/io/mesh_readers.cpp)";
+/// Keeps assimp's own loader for a format weft reads itself out of an importer: it claims
+/// the format's extension and refuses every file. loadMesh hands those formats to weft's
+/// readers (by extension, or by their bytes under a name assimp does not know) before an
+/// importer is made, so it is a guard: reaching it is a logic error.
+class OwnFormatGuard final : public Assimp::BaseImporter {
+ public:
+  explicit OwnFormatGuard(const char* extension) : extension_(extension) {
+    desc_.mName = "weft's own reader (guard)";
+    desc_.mAuthor = desc_.mMaintainer = "weft";
     desc_.mFlags = aiImporterFlags_SupportTextFlavour | aiImporterFlags_SupportBinaryFlavour;
     desc_.mFileExtensions = extension_;
   }
-
   const char* extension() const { return extension_; }
-  /// The message of the last file this loader refused ("" if none).
-  const std::string& error() const { return error_; }
-
-  /// By extension only. (loadMesh hands PLY and STL files to weft's readers itself, also
-  /// under another name; this loader only keeps assimp's own readers for them out.)
   bool CanRead(const std::string& file, Assimp::IOSystem* /*io*/, bool /*checkSig*/) const override {
     return SimpleExtensionCheck(file, extension_);
   }
-
   const aiImporterDesc* GetInfo() const override { return &desc_; }
 
  protected:
-  void InternReadFile(const std::string& file, aiScene* scene, Assimp::IOSystem* io) override {
-    error_.clear();
-    try {
-      std::vector<io_detail::PolygonMesh> meshes;
-      {  // the file's bytes are let go before the scene is made
-        std::unique_ptr<Assimp::IOStream> stream(io->Open(file, "rb"));
-        if (!stream) throw std::runtime_error("cannot open it");
-        std::string bytes(stream->FileSize(), '\0');
-        if (stream->Read(bytes.data(), 1, bytes.size()) != bytes.size()) throw std::runtime_error("cannot read it");
-        meshes = read_(bytes);
-      }
-      fill(*scene, std::move(meshes));
-    } catch (const std::exception& e) {
-      error_ = e.what();
-      throw;  // assimp's ReadFile catches it and returns no scene
-    }
+  void InternReadFile(const std::string& /*file*/, aiScene* /*scene*/, Assimp::IOSystem* /*io*/) override {
+    throw std::logic_error(std::string("weft reads .") + extension_ + " files itself; assimp was asked");
   }
 
  private:
-  /// The meshes into `scene`, as an assimp reader leaves them: one node naming every mesh,
-  /// one default material.
-  static void fill(aiScene& scene, std::vector<io_detail::PolygonMesh> meshes) {
-    scene.mMaterials = new aiMaterial*[1];
-    scene.mMaterials[0] = new aiMaterial();
-    scene.mNumMaterials = 1;
-    scene.mRootNode = new aiNode();
-    scene.mMeshes = new aiMesh*[meshes.size()];
-    scene.mRootNode->mMeshes = new unsigned[meshes.size()];
-    for (io_detail::PolygonMesh& in : meshes) {
-      aiMesh* out = new aiMesh();
-      scene.mMeshes[scene.mNumMeshes] = out;
-      scene.mRootNode->mMeshes[scene.mNumMeshes] = scene.mNumMeshes;
-      ++scene.mNumMeshes;
-      ++scene.mRootNode->mNumMeshes;
-      out->mVertices = new aiVector3D[in.vertexCount()];
-      out->mNumVertices = static_cast<unsigned>(in.vertexCount());
-      const auto single = [](double x) {  // beyond float's range as an infinity, not undefined behaviour
-        constexpr double kMax = std::numeric_limits<float>::max();
-        return x > kMax    ? std::numeric_limits<float>::infinity()
-               : x < -kMax ? -std::numeric_limits<float>::infinity()
-                           : static_cast<float>(x);
-      };
-      for (size_t v = 0; v < in.vertexCount(); ++v)
-        out->mVertices[v] = aiVector3D(single(in.xyz[3 * v]), single(in.xyz[3 * v + 1]), single(in.xyz[3 * v + 2]));
-      out->mFaces = new aiFace[in.faceSizes.size()];
-      out->mNumFaces = static_cast<unsigned>(in.faceSizes.size());
-      size_t next = 0;
-      for (size_t f = 0; f < in.faceSizes.size(); ++f) {
-        aiFace& face = out->mFaces[f];
-        face.mIndices = new unsigned[in.faceSizes[f]];
-        face.mNumIndices = in.faceSizes[f];
-        std::copy_n(in.indices.begin() + static_cast<std::ptrdiff_t>(next), in.faceSizes[f], face.mIndices);
-        next += in.faceSizes[f];
-      }
-      in = {};  // each mesh's copy is let go as soon as assimp's is made
-    }
-  }
-
-  Read read_;
   const char* extension_;
   aiImporterDesc desc_{};
-  std::string error_;
 };
 
-/// An importer whose PLY and STL loaders are weft's (WeftLoader) instead of assimp's.
+/// An importer without assimp's PLY, STL and OBJ loaders (OwnFormatGuard in their place).
 struct Importer {
   Assimp::Importer assimp;
-  WeftLoader* ply = nullptr;  // owned by `assimp` (it deletes its loaders)
-  WeftLoader* stl = nullptr;
-  WeftLoader* obj = nullptr;
 
   Importer() {
     // A file with bones but no meshes must not turn into assimp's generated bone geometry.
     assimp.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
-    ply = replace(new WeftLoader("weft PLY reader", "ply", io_detail::readPly));
-    stl = replace(new WeftLoader("weft STL reader", "stl", io_detail::readStl));
-    obj = replace(new WeftLoader("weft OBJ reader", "obj", io_detail::readObj));
-  }
-
-  /// The message weft's own reader gave for the file it last refused ("" if none did).
-  std::string readerError() const {
-    return !ply->error().empty() ? ply->error() : !stl->error().empty() ? stl->error() : obj->error();
+    for (const char* extension : {"ply", "stl", "obj"}) guard(new OwnFormatGuard(extension));
   }
 
  private:
-  WeftLoader* replace(WeftLoader* mine) {
-    std::unique_ptr<WeftLoader> owned(mine);
+  void guard(OwnFormatGuard* mine) {
+    std::unique_ptr<OwnFormatGuard> owned(mine);
     // Assimp's loaders for the extension are taken out (UnregisterLoader hands them back
     // to the caller to delete).
     while (Assimp::BaseImporter* theirs = assimp.GetImporter(mine->extension())) {
       if (assimp.UnregisterLoader(theirs) != AI_SUCCESS) throw std::logic_error("assimp keeps its loader");
       delete theirs;
     }
-    if (assimp.RegisterLoader(owned.get()) != AI_SUCCESS) throw std::logic_error("assimp refused weft's loader");
-    return owned.release();
+    if (assimp.RegisterLoader(owned.get()) != AI_SUCCESS) throw std::logic_error("assimp refused weft's guard");
+    owned.release();  // the importer deletes its loaders
   }
 };
 
@@ -238,7 +165,7 @@ TriangleMesh trianglesOf(std::vector<io_detail::PolygonMesh> meshes, const std::
 /// weft's own reader for a file named `name` with first bytes `head` of `size` bytes: by
 /// extension (ply, stl, obj), or for a name assimp does not know by the bytes (PLY, STL,
 /// OBJ); null for the formats assimp reads.
-WeftLoader::Read ownReader(const std::string& name, std::string_view head, std::uint64_t size) {
+OwnRead ownReader(const std::string& name, std::string_view head, std::uint64_t size) {
   if (const char* format = io_detail::ownFormatByName(name))
     return format[0] == 'p' ? io_detail::readPly : format[0] == 's' ? io_detail::readStl : io_detail::readObj;
   const std::string extension = std::filesystem::path(name).extension().string();
@@ -376,11 +303,7 @@ void checkRawScene(aiScene& scene, const std::string& path) {
 /// checkRawScene and then triangulated and flattened (kImportFlags).
 const aiScene* postProcessed(Importer& reader, const aiScene* raw, const std::string& path) {
   Assimp::Importer& importer = reader.assimp;
-  if (raw == nullptr) {
-    const std::string ours = reader.readerError();
-    if (!ours.empty()) fail(path, ours);
-    fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
-  }
+  if (raw == nullptr) fail(path, std::string("assimp cannot read it: ") + importer.GetErrorString());
   // The importer owns the scene and hands it out as const; it is not a const object, and
   // ApplyPostProcessing below rewrites it in place anyway.
   checkRawScene(const_cast<aiScene&>(*raw), path);
@@ -413,7 +336,7 @@ TriangleMesh loadCounted(const std::string& path, Ignored* ignored) {
     char head[256];
     in.read(head, sizeof head);
     const std::uint64_t size = static_cast<std::uint64_t>(std::filesystem::file_size(path));
-    const WeftLoader::Read read = ownReader(path, std::string_view(head, static_cast<size_t>(in.gcount())), size);
+    const OwnRead read = ownReader(path, std::string_view(head, static_cast<size_t>(in.gcount())), size);
     if (read == nullptr) {
       Importer importer;
       return collectTriangles(postProcessed(importer, importer.assimp.ReadFile(path, 0), path), path, ignored);
@@ -436,7 +359,7 @@ TriangleMesh loadCounted(const std::string& path, Ignored* ignored) {
 /// loadMeshFromMemory, with what the file held beside its faces in *ignored.
 TriangleMesh loadCountedFromMemory(const std::string& contents, const std::string& name, Ignored* ignored) {
   if (contents.empty()) fail(name, "no triangles: the file is empty (0 bytes)");
-  const WeftLoader::Read read = ownReader(name, std::string_view(contents).substr(0, 256), contents.size());
+  const OwnRead read = ownReader(name, std::string_view(contents).substr(0, 256), contents.size());
   if (read != nullptr) {
     std::vector<io_detail::PolygonMesh> meshes;
     try {

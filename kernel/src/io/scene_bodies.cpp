@@ -41,8 +41,10 @@ double readMass(const Reader& r, const Json& j, const std::string& f, double fal
 
 /// The body's `materials`: structural and bend springs, and shear springs where the body
 /// has them (`shear`, grids).
+/// `shear` is null for bodies without shear springs; a material given for a family the
+/// body leaves out (shear_springs or bend_springs false) would not be used and is refused.
 void readMaterials(const Reader& r, const Json& body, const std::string& f, SpringMaterial& structural,
-                   SpringMaterial* shear, SpringMaterial& bend) {
+                   SpringMaterial* shear, bool shearSprings, SpringMaterial& bend, bool bendSprings) {
   if (!body.contains("materials")) return;
   const std::string fm = Reader::join(f, "materials");
   const Json& j = body["materials"];
@@ -50,6 +52,13 @@ void readMaterials(const Reader& r, const Json& body, const std::string& f, Spri
     r.object(j, fm, {"structural", "shear", "bend"});
   else
     r.object(j, fm, {"structural", "bend"});
+  const auto familyOff = [&](const char* family, bool on, const char* flag) {
+    if (j.contains(family) && !on)
+      r.fail(Reader::join(fm, family), std::string("is for ") + family + " springs, and " + flag +
+                                           " is false: drop the material or turn the springs on");
+  };
+  if (shear) familyOff("shear", shearSprings, "shear_springs");
+  familyOff("bend", bendSprings, "bend_springs");
   structural = r.material(j, fm, "structural", structural);
   if (shear) *shear = r.material(j, fm, "shear", *shear);
   bend = r.material(j, fm, "bend", bend);
@@ -85,13 +94,10 @@ std::string readMeshFile(const Reader& r, const Json& j, const std::string& f, c
 /// is the kernel's, at assembly): `spacing` as laid out, `key` the field, `what` how the
 /// spacing follows from it ("" when it is the field's value).
 void requireSpacing(const Reader& r, const std::string& f, const char* key, double spacing, const std::string& what) {
-  constexpr double shortest = detail::PrecisionLimits<double>::kShortest;
-  if (!(spacing >= shortest))
-    r.fail(Reader::join(f, key), (what.empty() ? std::string() : what + " = " + fmt(spacing) + " m: ") +
-                                     "must be at least " + fmt(shortest) +
-                                     " m in double precision (the squares of spring lengths must stay normal "
-                                     "numbers)" +
-                                     (what.empty() ? ", got " + fmt(spacing) : std::string()));
+  using Limits = detail::PrecisionLimits<double>;  // (the kernel's rule; float's is checked at assembly)
+  if (!Limits::spacing(spacing))
+    r.fail(Reader::join(f, key), (what.empty() ? std::string() : what + " = " + fmt(spacing) + " m: ") + "must be " +
+                                     Limits::spacingRule() + (what.empty() ? ", got " + fmt(spacing) : std::string()));
 }
 
 BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const std::string& baseDirectory) {
@@ -114,7 +120,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     requireSpacing(r, f, "length", s.length / static_cast<double>(s.particleCount - 1), "length / (particles - 1)");
     s.totalMass = readMass(r, j, f, s.totalMass, s.particleCount);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
-    readMaterials(r, j, f, s.structural, nullptr, s.bend);
+    readMaterials(r, j, f, s.structural, nullptr, false, s.bend, s.bendSprings);
     geometry = ropeGeometry(s);
     if (!finite(geometry->position(s.particleCount - 1)))
       r.fail(f, "the rope's far end " + fmt(geometry->position(s.particleCount - 1)) +
@@ -149,7 +155,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     s.totalMass = readMass(r, j, f, s.totalMass, s.width * s.height);
     s.shearSprings = r.boolean(j, f, "shear_springs", s.shearSprings);
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
-    readMaterials(r, j, f, s.structural, &s.shear, s.bend);
+    readMaterials(r, j, f, s.structural, &s.shear, s.shearSprings, s.bend, s.bendSprings);
     geometry = gridGeometry(s);
     for (const Index corner : {s.width - 1, s.width * (s.height - 1), s.width * s.height - 1})
       if (!finite(geometry->position(corner)))
@@ -172,7 +178,7 @@ BodySpec readBody(const Reader& r, const Json& j, const std::string& f, const st
     s.totalMass = r.number(j, f, "total_mass", s.totalMass, 0, false, " kg");
     s.arealDensity = r.number(j, f, "areal_density", s.arealDensity, 0, false, " kg/m^2");
     s.bendSprings = r.boolean(j, f, "bend_springs", s.bendSprings);
-    readMaterials(r, j, f, s.structural, nullptr, s.bend);
+    readMaterials(r, j, f, s.structural, nullptr, false, s.bend, s.bendSprings);
   }
   b.velocity = r.vector(j, f, "velocity", b.velocity);
   if (b.kind != BodyKind::Rope && j.contains("self_collision_thickness"))

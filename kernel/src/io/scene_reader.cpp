@@ -132,7 +132,7 @@ std::string bodiesText(const SceneSpec& scene) {
 
 SceneSpec parseScene(const std::string& text, const std::string& source, const std::string& baseDirectory) {
   Json root;
-  JsonPathTracker tracker(source);
+  JsonPathTracker tracker(source, text);
   try {
     root = Json::parse(
         text, [&tracker](int depth, Json::parse_event_t event, Json& parsed) { return tracker(depth, event, parsed); });

@@ -34,6 +34,10 @@ SceneSpec builtinSceneSpec(const std::string& name, Index size) {
     return scene;
   };
   const auto count = [&](Index fallback) { return size > 0 ? size : fallback; };
+  // Scenes of a fixed layout have nothing --size could set: a size is refused, not ignored.
+  if (size > 0 && (name == "ball-on-brick" || name == "bullet" || name == "slope"))
+    throw SceneError(name + ": the scene has a fixed layout, so a size does not apply (got " + std::to_string(size) +
+                     "; the sized scenes are the cloths, the ropes, stack and pile)");
   if (name == "ball-on-brick") return rigidOnly(ballOnBrickScene(), 10);
   if (name == "stack") return rigidOnly(stackScene(count(10)), 10);
   if (name == "pile") return rigidOnly(pileScene(count(1000)), 5);

@@ -116,7 +116,7 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   o.narrowPhase.method = method == "exact" ? NarrowPhaseMethod::Exact
                          : method == "ofg" ? NarrowPhaseMethod::Ofg
                                            : NarrowPhaseMethod::Witness;
-  o.narrowPhase.ofgFaces = static_cast<int>(r.integer(j, f, "ofg_faces", o.narrowPhase.ofgFaces, 1, 1024));
+  o.narrowPhase.ofgFaces = static_cast<int>(r.integer(j, f, "ofg_faces", o.narrowPhase.ofgFaces, 1, kMaxOfgFaces));
   o.substeps = r.anyInt(j, f, "substeps", o.substeps);
   o.velocityIterations = static_cast<int>(r.integer(j, f, "velocity_iterations", o.velocityIterations, 1, 1000));
   o.positionIterations = static_cast<int>(r.integer(j, f, "position_iterations", o.positionIterations, 0, 1000));
@@ -130,6 +130,10 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   o.maxPairs = static_cast<Index>(r.integer(j, f, "max_pairs", 0, 0, Index(1) << 28));
   o.particleContacts = r.boolean(j, f, "particle_contacts", o.particleContacts);
   o.particleSupports = r.boolean(j, f, "particle_supports", o.particleSupports);
+  if (j.contains("particle_supports") && o.particleSupports && !o.particleContacts)
+    r.fail(Reader::join(f, "particle_supports"),
+           "needs particle_contacts (supports are particle contacts that carry bodies), and particle_contacts is "
+           "false: drop particle_supports or turn particle_contacts on");
   o.timeOfImpact = r.choice(j, f, "time_of_impact", "speculative", {"speculative", "rollback"}) == "rollback"
                        ? RigidTimeOfImpact::Rollback
                        : RigidTimeOfImpact::Speculative;
@@ -168,6 +172,13 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
     b.velocity = eigen(r.vector(e, fk, "velocity", {0, 0, 0}));
     b.angularVelocity = eigen(r.vector(e, fk, "angular_velocity", {0, 0, 0}));
     readSurface(r, e, fk, b);
+    // (The kernel refuses a velocity or mass on a body that is not dynamic; its density is
+    // refused here, where a given one can be told from the default.)
+    if (b.motion != BodyMotion::Dynamic && e.contains("density"))
+      r.fail(Reader::join(fk, "density"),
+             "is for dynamic bodies only (motion is " + motion +
+                 (b.motion == BodyMotion::Static ? ": a static body does not move)"
+                                                 : ": a kinematic body moves by its path)"));
     if (e.contains("path")) {
       if (b.motion != BodyMotion::Kinematic)
         r.fail(Reader::join(fk, "path"), "is for kinematic bodies only (motion is " + motion + ")");

@@ -26,6 +26,12 @@ struct PrecisionLimits {
   /// The shortest spacing between particles a builder lays out: the squares of spring
   /// lengths stay normal numbers, 1e-18 m in float, 1e-150 m in double (above sqrt(min)).
   static constexpr double kShortest = sizeof(S) == sizeof(float) ? 1e-18 : 1e-150;
+  static bool spacing(double value) { return value >= kShortest; }
+  /// What spacing() requires, as messages say it.
+  static std::string spacingRule() {
+    return "at least " + number(kShortest) + " m in " + kName +
+           " precision (the squares of spring lengths must stay normal numbers)";
+  }
 
   static bool representable(double value) { return std::abs(value) <= kLargest; }
   static bool coordinate(double value) { return std::abs(value) <= kFarthest; }

@@ -63,10 +63,7 @@ void checkPrecision(const std::string& spec, double mass, const Vec3d& from, con
 template <class S>
 void checkSpacing(const std::string& field, double spacing) {
   using Limits = detail::PrecisionLimits<S>;
-  if (!(spacing >= Limits::kShortest))
-    detail::rejectField(field, spacing,
-                        "at least " + detail::number(Limits::kShortest) + " m in " + Limits::kName +
-                            " precision (the squares of spring lengths must stay normal numbers)");
+  if (!Limits::spacing(spacing)) detail::rejectField(field, spacing, Limits::spacingRule());
 }
 
 Vec3d along(const Vec3d& origin, const Vec3d& d, double t) {

@@ -359,6 +359,7 @@ NarrowPhaseOutcome collideHulls(const ConvexHull& a, const Pose& poseA, const Co
       return NarrowPhaseOutcome::FullQuery;
     }
     case NarrowPhaseMethod::Ofg:
+      // RigidOptions refuses k outside [1, kMaxOfgFaces]; the clamp guards direct callers' arrays.
       ofgQuery(a, poseA, b, poseB, rel, margin, std::clamp(options.ofgFaces, 1, kMaxOfgFaces), out);
       return NarrowPhaseOutcome::FullQuery;
     case NarrowPhaseMethod::Witness:

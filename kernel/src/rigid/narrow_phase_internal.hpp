@@ -26,14 +26,15 @@ using Eigen::Vector3d;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxPolygon = 128;           // vertices kept of a reference or incident polygon
 constexpr int kMaxClip = 2 * kMaxPolygon;  // clipping a convex n-gon by m planes leaves <= n + m vertices
-constexpr int kMaxOfgFaces = 64;           // OFG: k is clamped to this
 constexpr double kParallelSine = 1e-5;     // edge pairs with |ea x eb| < this |ea| |eb| are skipped
 // Feature preference (Gregorius' and Box2D's tolerances, made symmetric in sign so that
 // they also behave for speculative, positive separations): an edge axis replaces the best
 // face axis only if it is better by kEdgeRelTolerance |F| + kAbsTolerance, a face of B
 // replaces A's only if better by kFaceRelTolerance |fa| + kAbsTolerance. This keeps the
 // manifold (and its feature ids) from flickering between near-equal axes.
-constexpr double kLinearSlop = 0.001;  // m, RigidOptions::linearSlop's default
+// (A fixed 1 mm: RigidOptions::linearSlop, 5 mm by default, is the solver's and does not
+// reach the narrow phase.)
+constexpr double kLinearSlop = 0.001;  // m
 constexpr double kAbsTolerance = 0.5 * kLinearSlop;
 constexpr double kEdgeRelTolerance = 0.05;
 constexpr double kFaceRelTolerance = 0.02;

@@ -97,7 +97,12 @@ void validateRigidOptions(const RigidOptions& o) {
   require(o.maxHalvings >= 0 && o.maxHalvings <= 30, r + "maxHalvings", "in [0, 30]", std::to_string(o.maxHalvings));
   require(o.timeOfImpact == RigidTimeOfImpact::Speculative || o.timeOfImpact == RigidTimeOfImpact::Rollback,
           r + "timeOfImpact", "speculative or rollback", std::to_string(static_cast<int>(o.timeOfImpact)));
-  require(o.narrowPhase.ofgFaces >= 1, r + "narrowPhase.ofgFaces", ">= 1", std::to_string(o.narrowPhase.ofgFaces));
+  // Rollback cuts the step at the time of impact along each pair's motion: it is continuous
+  // detection, so `continuous = false` would be overruled without a word.
+  require(o.continuous || o.timeOfImpact != RigidTimeOfImpact::Rollback, r + "continuous",
+          "true with timeOfImpact rollback (rollback finds each pair's time of impact along its motion)", "false");
+  require(o.narrowPhase.ofgFaces >= 1 && o.narrowPhase.ofgFaces <= kMaxOfgFaces, r + "narrowPhase.ofgFaces",
+          "in [1, " + std::to_string(kMaxOfgFaces) + "]", std::to_string(o.narrowPhase.ofgFaces));
   for (std::size_t b = 0; b < o.bodies.size(); ++b) {
     const RigidBodyDesc& d = o.bodies[b];
     const std::string f = r + "bodies[" + std::to_string(b) + "].";
@@ -116,6 +121,16 @@ void validateRigidOptions(const RigidOptions& o) {
             "in [0, staticFriction (" + text(d.staticFriction) + ")]", text(d.kineticFriction));
     require(d.restitution >= 0 && d.restitution <= 1, f + "restitution", "in [0, 1]", text(d.restitution));
     if (d.motion == BodyMotion::Kinematic) validateKinematicPath(d.path, f + "path.");
+    // A static body does not move and a kinematic one moves by its path only: a velocity or
+    // a mass given to either would be dropped without a word, so it is refused.
+    if (d.motion != BodyMotion::Dynamic) {
+      const std::string zero =
+          std::string("zero for a ") +
+          (d.motion == BodyMotion::Static ? "static body (it does not move)" : "kinematic body (it moves by its path)");
+      require(d.velocity.isZero(0), f + "velocity", zero, text(d.velocity));
+      require(d.angularVelocity.isZero(0), f + "angularVelocity", zero, text(d.angularVelocity));
+      require(d.mass == 0, f + "mass", zero + "; only dynamic bodies have a mass", text(d.mass));
+    }
     for (std::size_t s = 0; s < d.shapes.size(); ++s) {
       const RigidShapeDesc& sh = d.shapes[s];
       const std::string g = f + "shapes[" + std::to_string(s) + "].";

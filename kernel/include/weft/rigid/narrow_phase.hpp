@@ -69,9 +69,12 @@ struct ContactManifold {
 enum class NarrowPhaseMethod { Exact, Ofg, Witness };
 const char* narrowPhaseMethodName(NarrowPhaseMethod method);
 
+/// The most faces a side the Opposing Face Geometry keeps (its arrays are fixed in size).
+inline constexpr int kMaxOfgFaces = 64;
+
 struct NarrowPhaseOptions {
   NarrowPhaseMethod method = NarrowPhaseMethod::Witness;
-  int ofgFaces = 6;  // k of the Opposing Face Geometry (faces kept on each side), >= 1
+  int ofgFaces = 6;  // k of the Opposing Face Geometry (faces kept on each side), 1..kMaxOfgFaces
 };
 
 /// What the last query of a pair found, kept by the caller between steps (one per pair).
@@ -94,7 +97,8 @@ enum class NarrowPhaseOutcome : std::uint8_t {
 };
 
 /// Contact manifold of two convex hulls (normal from A to B) for pairs whose separation
-/// is below `margin` (m, >= 0); out.pointCount = 0 otherwise.
+/// is below `margin` (m, >= 0); out.pointCount = 0 otherwise. `options.ofgFaces` is taken
+/// into [1, kMaxOfgFaces] here; RigidWorld refuses values outside it.
 NarrowPhaseOutcome collideHulls(const ConvexHull& a, const Pose& poseA, const ConvexHull& b, const Pose& poseB,
                                 double margin, const NarrowPhaseOptions& options, PairCache& cache,
                                 ContactManifold& out);

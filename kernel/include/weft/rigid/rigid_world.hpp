@@ -78,11 +78,12 @@ struct RigidBodyDesc {
   std::vector<RigidShapeDesc> shapes;  // >= 1 piece
   double density = 1000;               // kg/m^3 (> 0)
   double mass = 0;  // > 0: the body's mass (inertia scaled to match); 0: from density; in [1e-15, 1e15] kg either way
-                    // when dynamic
+                    // when dynamic; 0 for static and kinematic bodies (refused otherwise)
   Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // body frame axes, world
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();               // of the centre of mass, m/s
-  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();        // world, rad/s
+  // Dynamic bodies only (zero for static ones and for kinematic ones, which move by `path`):
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();         // of the centre of mass, m/s
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  // world, rad/s
   double staticFriction = 0.6;   // >= 0; a pair uses the geometric mean of its bodies' coefficients
   double kineticFriction = 0.5;  // in [0, staticFriction]
   double restitution = 0;        // in [0, 1]; a pair uses the larger
@@ -112,7 +113,7 @@ struct RigidOptions {
   int velocityIterations = 8;         // in [1, 1000], per substep
   int positionIterations = 1;         // in [0, 1000], per substep: passes of the penetration recovery (split impulses)
   double speculativeDistance = 0.01;  // m (>= 0): contacts are made this far before touching
-  bool continuous = true;             // grow each pair's margin by its motion over the step
+  bool continuous = true;             // grow each pair's margin by its motion over the step (true with Rollback)
   double linearSlop = 0.005;          // m: penetration left alone (>= 0)
   double penetrationRate = 0.2;       // share of the penetration removed per step, (0, 1]
   double maxPushVelocity = 3;         // m/s (> 0)
@@ -124,7 +125,8 @@ struct RigidOptions {
   int maxHalvings = 12;                // Rollback: shortest chunk step / 2^maxHalvings (0..30)
   // With particles in the same Simulation (rigid/particle_coupling.hpp):
   bool particleContacts = true;      // particles and bodies push each other
-  bool particleSupports = true;      // held particles carry the bodies on them (SupportContact)
+  bool particleSupports = true;      // held particles carry the bodies on them (SupportContact); acts
+                                     // through particleContacts (the reader refuses it set without them)
   double particleThickness = 0.005;  // particle radius against bodies, m (> 0)
 };
 
