@@ -346,7 +346,13 @@ TEST(Cli, FramesOutWritesOneObjPerFrame) {
   EXPECT_EQ(j["output"], dir);
   std::set<std::string> files;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) files.insert(entry.path().filename().string());
-  EXPECT_EQ(files, (std::set<std::string>{"frame_000000.obj", "frame_000001.obj", "frame_000002.obj"}));
+  EXPECT_EQ(files, (std::set<std::string>{"frame_000000.obj", "frame_000001.obj", "frame_000002.obj", "frames.json"}));
+  // The record of the numbering, which --resume checks.
+  std::ifstream recordFile(dir + "/frames.json");
+  const nlohmann::json record = nlohmann::json::parse(recordFile);
+  EXPECT_EQ(record["every"], 5);
+  EXPECT_EQ(record["format"], "obj");
+  EXPECT_EQ(record["scene"], "flag");
   std::ifstream last(dir + "/frame_000002.obj");
   std::string line;
   int vertices = 0, faces = 0;
@@ -407,7 +413,7 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   EXPECT_EQ(resumed["frames_written"].get<std::int64_t>(), (stopped + 100) / 40 + 1);
   std::int64_t files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(frames)) ++files;
-  EXPECT_EQ(files, (stopped + 100) / 40 + 1);
+  EXPECT_EQ(files, (stopped + 100) / 40 + 1 + 1);  // and frames.json
   // A path that cannot be written is refused before the first step.
   const CliRun unwritable = weft("run flag --size 8 --steps 10 --checkpoint /nonexistent-dir/run.wckpt", true);
   EXPECT_EQ(unwritable.exitCode, 2);
@@ -440,9 +446,10 @@ TEST(Cli, InterruptWritesACheckpointThatResumesBitForBit) {
   std::filesystem::remove_all(dir);
 }
 
-// Frame k is step k x --every, also across --resume: a resumed run whose frames would
-// write over the ones on disk or leave a gap (another --every, another format) is refused
-// before its first step, and the files stay as they were.
+// Frame k is step k x --every, also across --resume: a resumed run with another --every
+// or format than the directory's record (frames.json) is refused before its first step,
+// and so is one that would write over or leave a gap in frames without a record; the
+// files stay as they were.
 TEST(Cli, ResumedFramesContinueTheNumberingOrAreRefused) {
   const std::filesystem::path dir = ::testing::TempDir() + "weft_cli_resume_frames";
   std::filesystem::remove_all(dir);
@@ -450,7 +457,7 @@ TEST(Cli, ResumedFramesContinueTheNumberingOrAreRefused) {
   const std::string checkpoint = (dir / "run.wckpt").string(), frames = (dir / "frames").string();
   const auto count = [&] {
     std::int64_t n = 0;
-    for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(frames)) ++n;
+    for (const auto& entry : std::filesystem::directory_iterator(frames)) n += entry.path().extension() == ".obj";
     return n;
   };
   const nlohmann::json first =
@@ -458,6 +465,20 @@ TEST(Cli, ResumedFramesContinueTheNumberingOrAreRefused) {
   EXPECT_EQ(first["frames_written"], 4);
   ASSERT_EQ(count(), 4);
   const std::string resume = "run flag --size 8 --steps 60 --resume " + checkpoint + " --out " + frames;
+  for (const char* every : {"20", "8", "5"}) {
+    const CliRun other = weft(resume + " --every " + every, true);
+    EXPECT_EQ(other.exitCode, 2) << other.out;
+    EXPECT_NE(other.out.find("were written as obj every 10 steps (frames.json), and this run asks for obj every " +
+                             std::string(every)),
+              std::string::npos)
+        << other.out;
+  }
+  const CliRun format = weft(resume + " --every 10 --format ply", true);
+  EXPECT_EQ(format.exitCode, 2) << format.out;
+  EXPECT_NE(format.out.find("this run asks for ply every 10"), std::string::npos) << format.out;
+  EXPECT_EQ(count(), 4) << "a refused run wrote frames";
+  // Without the record (frames of an older weft), by the frames' numbers.
+  std::filesystem::remove(frames + "/frames.json");
   const CliRun over = weft(resume + " --every 20", true);
   EXPECT_EQ(over.exitCode, 2) << over.out;
   EXPECT_NE(over.out.find("end at frame_000003.obj, and this run continues from step 30 and writes frame_000002.obj "
@@ -469,17 +490,30 @@ TEST(Cli, ResumedFramesContinueTheNumberingOrAreRefused) {
   EXPECT_NE(gap.out.find("writes frame_000007.obj next (frame k is step k x --every 5): it would leave frames missing"),
             std::string::npos)
       << gap.out;
-  const CliRun format = weft(resume + " --every 10 --format ply", true);
-  EXPECT_EQ(format.exitCode, 2) << format.out;
-  EXPECT_NE(format.out.find("holds frame_000000.obj, and this run writes ply frames"), std::string::npos) << format.out;
+  std::ofstream(frames + "/frame_-1.ply") << "";  // (not a frame number: ignored)
+  const CliRun mixed = weft(resume + " --every 10 --format ply", true);
+  EXPECT_EQ(mixed.exitCode, 2) << mixed.out;
+  EXPECT_NE(mixed.out.find("holds frame_000000.obj, and this run writes ply frames"), std::string::npos) << mixed.out;
+  std::filesystem::remove(frames + "/frame_-1.ply");
   EXPECT_EQ(count(), 4) << "a refused run wrote frames";
-  // With the --every it began with, it continues the numbering; into an empty directory too.
+  // With the --every it began with, it continues the numbering (and writes the record again).
   const nlohmann::json same = runJson(resume + " --every 10");
   EXPECT_EQ(same["frames_written"], 7);
   EXPECT_EQ(count(), 7);
+  EXPECT_TRUE(std::filesystem::exists(frames + "/frames.json"));
+  // From an older checkpoint (a run killed after it wrote more frames), the same frames are
+  // written again: the same bits.
+  const auto bytes = [](const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  const std::string frame5 = bytes(frames + "/frame_000005.obj");
+  const nlohmann::json again = runJson(resume + " --every 10");
+  EXPECT_EQ(again["state_hash"], same["state_hash"]);
+  EXPECT_EQ(bytes(frames + "/frame_000005.obj"), frame5);
+  // Into an empty directory, any --every.
   const std::string fresh = (dir / "fresh").string();
-  const nlohmann::json elsewhere =
-      runJson("run flag --size 8 --steps 60 --resume " + checkpoint + " --out " + fresh + " --every 20");
+  runJson("run flag --size 8 --steps 60 --resume " + checkpoint + " --out " + fresh + " --every 20");
   EXPECT_TRUE(std::filesystem::exists(fresh + "/frame_000002.obj"));
   EXPECT_TRUE(std::filesystem::exists(fresh + "/frame_000003.obj"));
   std::filesystem::remove_all(dir);
@@ -519,7 +553,43 @@ TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
   EXPECT_EQ(rk45["unused_settings"].size(), 5u) << rk45["unused_settings"].dump();
   // A scene that uses everything it sets lists nothing.
   EXPECT_EQ(runJson("run flag --size 8 --steps 2")["unused_settings"], nlohmann::json::array());
+  // rk45 with fixed steps, and a frame format without frames.
+  const std::string fixed = (dir / "fixed.json").string();
+  std::ofstream(fixed) << R"({"name": "fixed", "dt": 0.001, "steps": 2, "bodies": [{"type": "rope", "particles": 5}],
+    "integrator": "rk45", "integration": {"adaptive": false, "min_substep": 1e-9}, "output": {"format": "ply"}})";
+  EXPECT_EQ(runJson("run " + fixed)["unused_settings"],
+            (nlohmann::json{"integration.min_substep applies to rk45's error control, and this run takes fixed rk45 "
+                            "steps (integration.adaptive false or --fixed-step)",
+                            "output.format applies to frames (output.directory or --out), and this run writes none"}));
+  // Rigid bodies only: the particles' settings, rollback's with speculative contacts, and
+  // ofg_faces with another narrow phase.
+  const std::string bodies = (dir / "bodies.json").string();
+  std::ofstream(bodies) << R"({"name": "bodies", "dt": 0.01, "steps": 2, "integrator": "rk45", "precision": "float",
+    "integration": {"rtol": 1e-3},
+    "rigid_bodies": {"ofg_faces": 4, "max_halvings": 3, "particle_thickness": 0.01,
+      "bodies": [{"motion": "static", "shapes": [{"type": "box", "half_extents": [1, 0.5, 1]}]},
+                 {"shapes": [{"type": "box", "half_extents": [0.1, 0.1, 0.1]}], "position": [0, 1, 0]}]}})";
+  EXPECT_EQ(runJson("run " + bodies)["unused_settings"],
+            (nlohmann::json{
+                "integrator applies to particles (cloth and ropes), and the scene 'bodies' has none",
+                "precision applies to particles (cloth and ropes), and the scene 'bodies' has none (rigid bodies run "
+                "in double)",
+                "integration applies to particles (cloth and ropes), and the scene 'bodies' has none",
+                "rigid_bodies.particle_contacts, particle_supports and particle_thickness applies to particles (cloth "
+                "and ropes), and the scene 'bodies' has none",
+                "rigid_bodies.rollback_penetration and max_halvings applies to time_of_impact \"rollback\", and this "
+                "run's is speculative",
+                "rigid_bodies.ofg_faces applies to narrow_phase \"ofg\", and this run uses witness"}));
   std::filesystem::remove_all(dir);
+}
+
+// A thread count above what the machine runs is run on fewer; soak says so, in the table's
+// header and on stderr, since the hashes it compares are then of fewer thread counts.
+TEST(Cli, SoakSaysWhenAThreadCountRunsOnFewer) {
+  const CliRun r = weft("soak --seconds 0.01 --max-steps 2 --scene rope --threads 1 1024", true);
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_NE(r.out.find("weft soak: note: --threads 1024 runs on "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(threads 1 1024 (runs "), std::string::npos) << r.out;
 }
 
 // `weft soak`, short: each scene on 1 and 2 threads, one row with the checks.
@@ -757,8 +827,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"stack --precision float", "--precision", "run in double"},
         BadOption{"pile --drag 1", "--drag", "has none"},
         BadOption{"slope --strategy gather", "--strategy", "has none"},
-        BadOption{"ball-on-brick --size 4", "size", "fixed layout"},
-        BadOption{"flag rope", "unexpected argument", "rope"}),
+        BadOption{"ball-on-brick --size 4", "size", "fixed layout"}, BadOption{"bullet --size 9", "size", "got 9"},
+        BadOption{"slope --size 3", "size", "fixed layout"}, BadOption{"flag rope", "unexpected argument", "rope"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)

@@ -418,8 +418,8 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
     "name": "everything",
     "bodies": [
       {"type": "rope", "name": "line", "particles": 10, "origin": [1, 2, 3], "direction": [0, 0, 2],
-       "length": 2.5, "particle_mass": 0.01, "bend_springs": false,
-       "materials": {"structural": {"stiffness": 700, "damping": 0.07}},
+       "length": 2.5, "particle_mass": 0.01, "bend_springs": true,
+       "materials": {"structural": {"stiffness": 700, "damping": 0.07}, "bend": {"stiffness": 7, "damping": 0.007}},
        "pins": [9, {"particles": [0, 1], "path": {"velocity": [0.1, 0.2, 0.3], "angular_velocity": 0.5,
                                                   "axis": [1, 0, 0], "center": [1, 2, 3], "start": 0.25, "end": 0.75}}]},
       {"type": "cloth_grid", "name": "sheet", "width": 5, "height": 4, "origin": [0, 3, 0], "row_axis": [0, 0, 1],
@@ -427,8 +427,8 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
        "materials": {"structural": {"stiffness": 11, "damping": 0.11}, "bend": {"stiffness": 13, "damping": 0.13}},
        "pins": [{"box": {"min": [-1, 2.95, -1], "max": [1, 3.05, 1]}}]},
       {"type": "cloth_mesh", "name": "disc", "mesh": "meshes/cloth.obj", "weld_tolerance": 0.001, "scale": 0.02,
-       "translate": [4, 5, 6], "areal_density": 0.3, "bend_springs": true,
-       "materials": {"structural": {"stiffness": 21, "damping": 0.21}, "bend": {"stiffness": 22, "damping": 0.22}}}
+       "translate": [4, 5, 6], "areal_density": 0.3, "bend_springs": false,
+       "materials": {"structural": {"stiffness": 21, "damping": 0.21}}}
     ],
     "integrator": "implicit", "dt": 0.004, "steps": 77, "precision": "float", "threads": 3,
     "force_strategy": "coloured", "gravity": [0, 0, -1.5],
@@ -454,9 +454,11 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   EXPECT_EQ(rope.rope.direction.z, 2);
   EXPECT_EQ(rope.rope.length, 2.5);
   EXPECT_DOUBLE_EQ(rope.rope.totalMass, 0.1);  // particle_mass x particles
-  EXPECT_FALSE(rope.rope.bendSprings);
+  EXPECT_TRUE(rope.rope.bendSprings);
   EXPECT_EQ(rope.rope.structural.stiffness, 700);
   EXPECT_EQ(rope.rope.structural.damping, 0.07);
+  EXPECT_EQ(rope.rope.bend.stiffness, 7);
+  EXPECT_EQ(rope.rope.bend.damping, 0.007);
   ASSERT_EQ(rope.pins.size(), 2u);  // one PinSpec per element of pins, in order
   EXPECT_EQ(rope.pins[0].particles, std::vector<Index>{9});
   EXPECT_FALSE(rope.pins[0].path);
@@ -500,9 +502,8 @@ TEST(SceneReader, EveryFieldLandsInItsMember) {
   EXPECT_EQ(mesh.mesh.scale, 0.02);
   EXPECT_EQ(mesh.mesh.translate.z, 6);
   EXPECT_EQ(mesh.mesh.arealDensity, 0.3);
-  EXPECT_TRUE(mesh.mesh.bendSprings);
+  EXPECT_FALSE(mesh.mesh.bendSprings);
   EXPECT_EQ(mesh.mesh.structural.damping, 0.21);
-  EXPECT_EQ(mesh.mesh.bend.stiffness, 22);
   EXPECT_TRUE(mesh.pins.empty());
 
   const SimulationOptions& o = s.simulation;
@@ -694,6 +695,20 @@ TEST(SceneReader, RigidQuaternionsAreUsedExactlyAsWritten) {
 
 // Only a number that is not zero as written and reads as 0 is refused: a zero written with
 // any exponent, a small number a double holds, and digits inside strings are not.
+// A material lands in its family's member (a family a body leaves out refuses one:
+// BadScene's rows); the grid of EveryFieldLandsInItsMember leaves shear out.
+TEST(SceneReader, ShearAndBendMaterialsLand) {
+  const SceneSpec s = parseScene(R"({"dt": 1e-3, "steps": 1, "bodies": [{"type": "cloth_grid", "width": 3,
+      "height": 3, "materials": {"shear": {"stiffness": 12, "damping": 0.12}, "bend": {"stiffness": 22}}},
+      {"type": "cloth_mesh", "mesh": "meshes/cloth.obj", "materials": {"bend": {"stiffness": 23, "damping": 0.23}}}]})",
+                                 "materials.json", kScenes);
+  EXPECT_EQ(s.bodies[0].grid.shear.stiffness, 12);
+  EXPECT_EQ(s.bodies[0].grid.shear.damping, 0.12);
+  EXPECT_EQ(s.bodies[0].grid.bend.stiffness, 22);
+  EXPECT_EQ(s.bodies[1].mesh.bend.stiffness, 23);
+  EXPECT_EQ(s.bodies[1].mesh.bend.damping, 0.23);
+}
+
 TEST(SceneReader, ZerosAndSmallNumbersAreReadAsWritten) {
   const SceneSpec s = parseScene(R"({"name": "1e-400", "dt": 1e-3, "steps": 1,
       "bodies": [{"type": "rope", "name": "r 5e-999", "origin": [0.0e-999, 1e-320, -0e+5]}]})");
@@ -701,6 +716,16 @@ TEST(SceneReader, ZerosAndSmallNumbersAreReadAsWritten) {
   EXPECT_EQ(s.bodies[0].rope.origin.x, 0.0);
   EXPECT_EQ(s.bodies[0].rope.origin.y, 1e-320);
   EXPECT_EQ(s.bodies[0].rope.origin.z, 0.0);
+  // A long mantissa does not hide an exponent that takes it below double's range
+  // (1 and 100001 zeros, times 1e-100400, is 1e-399).
+  const std::string tiny = "1" + std::string(100001, '0') + "e-100400";
+  try {
+    parseScene(R"({"dt": 1e-3, "steps": 1, "bodies": [{"type": "rope", "length": )" + tiny + "}]}", "tiny.json");
+    ADD_FAILURE() << "a length that reads as 0 was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("bodies[0].length: the number 1000000000"));
+    EXPECT_THAT(e.what(), HasSubstr("... is too small for a double"));
+  }
 }
 
 TEST(SceneReader, StepCountSaturatesInsteadOfOverflowing) {
@@ -1065,7 +1090,7 @@ const std::vector<BadScene>& badScenes() {
       {"rigid_static_density", rigid(R"(, "motion": "static", "density": 300)"), "rigid_bodies.bodies[1].density",
        "is for dynamic bodies only (motion is static"},
       {"rigid_rollback_not_continuous", rigid("", R"("time_of_impact": "rollback", "continuous": false, )"),
-       "rigid_bodies.continuous", "must be true with timeOfImpact rollback"},
+       "rigid_bodies.continuous", R"(must be true with time_of_impact "rollback")"},
       {"rigid_supports_without_contacts", rigid("", R"("particle_contacts": false, "particle_supports": true, )"),
        "rigid_bodies.particle_supports", "needs particle_contacts"},
       {"rigid_ofg_faces_above_its_arrays", rigid("", R"("narrow_phase": "ofg", "ofg_faces": 65, )"),

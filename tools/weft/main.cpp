@@ -237,8 +237,9 @@ CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const 
   cmd->add_option("--supersample", render.supersample,
                   "Draw at N times the size and average down (anti-aliasing; 1 to 4, default 2)")
       ->check(CLI::Range(1, 4));
-  cmd->add_option("--scene-size", render.run.size,
-                  "Built-in scenes: grid side (cloth) or particle count (rope), what `weft run --size` sets")
+  cmd->add_option(
+         "--scene-size", render.run.size,
+         "Built-in scenes: what `weft run --size` sets (grid side, rope particles, boxes of stack, bodies of pile)")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", render.run.steps, "Number of fixed steps (default: the scene's)")
       ->check(nonNegativeInteger);
@@ -267,7 +268,9 @@ int main(int argc, char** argv) {
                   "A built-in scene (" + names +
                       "; docs/scenes.md says what each is) or a JSON scene file (docs/scenes.md). Options given "
                       "below override the scene's values");
-  cmd->add_option("--size", run.size, "Built-in scenes: grid side (cloth) or particle count (rope); default 64")
+  cmd->add_option("--size", run.size,
+                  "Built-in scenes: grid side (cloth), particle count (rope), boxes (stack) or bodies (pile); "
+                  "ball-on-brick, bullet and slope have a fixed layout")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   cmd->add_option("--steps", run.steps, "Number of fixed steps")->check(nonNegativeInteger);
   cmd->add_option("--dt", run.dt, "Time step in seconds (> 0); default scales with --size")->check(finitePositive);
@@ -377,7 +380,10 @@ int main(int argc, char** argv) {
       "compare two integrators side by side, pull the cloth with the mouse");
   viewCmd->allow_extras();
   viewCmd->add_option("scene", view.run.scene, "A built-in scene (" + names + ") or a JSON scene file");
-  viewCmd->add_option("--scene-size", view.run.size, "Built-in scenes: grid side (cloth) or particle count (rope)")
+  viewCmd
+      ->add_option("--scene-size", view.run.size,
+                   "Built-in scenes: what `weft run --size` sets (grid side, rope particles, boxes of stack, bodies "
+                   "of pile)")
       ->check(CLI::Range(std::int64_t(2), std::int64_t(1) << 15));
   viewCmd->add_option("--dt", view.run.dt, "Time step in seconds (> 0)")->check(finitePositive);
   viewCmd->add_option("--integrator", view.run.integrator, integratorList)->check(CLI::IsMember(integrators));

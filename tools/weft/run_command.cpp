@@ -19,6 +19,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "output_file.hpp"
 #include "process_memory.hpp"
 #include "weft/io/gltf.hpp"
 #include "weft/io/scene.hpp"
@@ -193,36 +194,74 @@ class FrameSink {
   std::int64_t written_ = 0;
 };
 
-/// Frame k of a run is its step k x every, also across --resume: the frames already in the
-/// directory must end just before the one the resumed run writes next. Otherwise they came
-/// from a run with another --every or from beyond the checkpoint, and the run would write
-/// over them or leave a gap; it is refused before the first step.
+/// The record of a frame directory's numbering, `DIR/frames.json`: frame k of a run is its
+/// step k x every, also across --resume, so a resumed run must take frames with the same
+/// period and format as the run that began the directory.
+constexpr const char* kFramesRecord = "frames.json";
+
+void writeFramesRecord(const weft::OutputSpec& output, const std::string& scene) {
+  nlohmann::ordered_json j;
+  j["scene"] = scene;
+  j["format"] = output.format;
+  j["every"] = output.every;
+  j["frame_k_is_step"] = "k x every";
+  writeTextFile((std::filesystem::path(output.directory) / kFramesRecord).string(), j.dump(2) + "\n");
+}
+
+/// Before a resumed run writes obj or ply frames into a directory that has some: with the
+/// directory's record, the same period and format (frames written again are the same
+/// bits); without one (frames of a weft before the record), the frames on disk must end
+/// just before the one the run writes next. Otherwise the run would write over frames of
+/// other steps or leave a gap, and it is refused before its first step.
 void checkResumedFrames(const weft::OutputSpec& output, std::int64_t step) {
+  const std::string record = (std::filesystem::path(output.directory) / kFramesRecord).string();
+  std::error_code error;
+  if (std::filesystem::exists(record, error)) {
+    nlohmann::json j;
+    try {
+      std::ifstream in(record);
+      j = nlohmann::json::parse(in);
+      (void)j.at("every").get<std::int64_t>();
+      (void)j.at("format").get<std::string>();
+    } catch (const std::exception& e) {
+      throw std::runtime_error("--resume: cannot read the frame record '" + record + "' (" + e.what() +
+                               "): remove it to resume by the frames' numbers alone");
+    }
+    const std::int64_t every = j["every"].get<std::int64_t>();
+    const std::string format = j["format"].get<std::string>();
+    if (every != output.every || format != output.format)
+      throw std::invalid_argument("--resume: the frames in '" + output.directory + "' were written as " + format +
+                                  " every " + std::to_string(every) + " steps (" + kFramesRecord +
+                                  "), and this run asks for " + output.format + " every " +
+                                  std::to_string(output.every) +
+                                  ": resume with the run's --every and --format, or into another directory (--out)");
+    return;
+  }
   const std::int64_t next = step / output.every + 1;
   const auto frameName = [&](std::int64_t k) {
     char name[48];
     std::snprintf(name, sizeof name, "frame_%06lld.%s", static_cast<long long>(k), output.format.c_str());
     return std::string(name);
   };
-  std::int64_t highest = -1, otherLowest = -1;
-  std::string other;
-  std::error_code error;
+  std::int64_t highest = -1;
+  std::optional<std::pair<std::int64_t, std::string>> other;  // the other format's first frame
   for (const auto& entry : std::filesystem::directory_iterator(output.directory, error)) {
     const std::string name = entry.path().filename().string();
     const std::string ext = entry.path().extension().string();
     if (!name.starts_with("frame_") || (ext != ".obj" && ext != ".ply")) continue;
     const std::string digits = name.substr(6, name.size() - 6 - ext.size());
-    std::int64_t k = 0;
-    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), k);
-    if (digits.empty() || ec != std::errc() || end != digits.data() + digits.size()) continue;
+    if (digits.empty() || digits.size() > 18 ||
+        !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    const std::int64_t k = std::stoll(digits);
     if (ext != "." + output.format) {
-      if (otherLowest < 0 || k < otherLowest) otherLowest = k, other = name;  // (the same file whatever the order)
+      if (!other || k < other->first) other = {k, name};  // (the same file whatever the directory's order)
       continue;
     }
     highest = std::max(highest, k);
   }
-  if (otherLowest >= 0)
-    throw std::invalid_argument("--resume: the frame directory '" + output.directory + "' holds " + other +
+  if (other)
+    throw std::invalid_argument("--resume: the frame directory '" + output.directory + "' holds " + other->second +
                                 ", and this run writes " + output.format +
                                 " frames: resume with the format the run began with (--format), or into another "
                                 "directory (--out)");
@@ -318,6 +357,11 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
   if (o.narrowPhase && rigid.bodies.empty()) refuse("--narrow-phase", "scenes with rigid bodies", noBodies);
   if (o.timeOfImpact && rigid.bodies.empty()) refuse("--time-of-impact", "scenes with rigid bodies", noBodies);
   if (o.ofgFaces && rigid.bodies.empty()) refuse("--ofg-faces", "scenes with rigid bodies", noBodies);
+  if (o.timeOfImpact && rigid.timeOfImpact == weft::RigidTimeOfImpact::Rollback && !rigid.continuous)
+    throw std::invalid_argument(
+        "--time-of-impact rollback finds each pair's time of impact along its motion, and the "
+        "scene '" +
+        spec.name + "' sets rigid_bodies.continuous false: drop one of them");
   if (o.ofgFaces && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg)
     refuse("--ofg-faces", "the Opposing Face Geometry narrow phase (--narrow-phase ofg)",
            std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
@@ -328,34 +372,66 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
 /// --integrator): each is said on stderr and listed in the JSON summary.
 std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::SceneSpec& spec) {
   std::vector<std::string> unused;
-  const weft::IntegratorKind integrator = spec.simulation.integrator;
-  const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  const weft::IntegratorOptions& io = spec.simulation.integration;
+  const weft::SimulationOptions& sim = spec.simulation;
+  const weft::IntegratorKind integrator = sim.integrator;
+  const weft::IntegratorOptions& io = sim.integration;
   const weft::IntegratorOptions defaults;
+  const weft::SimulationOptions defaultSim;
   const auto note = [&](bool set, const char* key, const char* needs, const std::string& instead) {
     if (set) unused.push_back(std::string(key) + " applies to " + needs + ", and " + instead);
   };
-  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive) {
+  const weft::RigidOptions& rigid = sim.rigid;
+  const weft::RigidOptions defaultRigid;
+  if (spec.bodies.empty()) {
+    // Rigid bodies only: they run in double with their own solver, and nothing of the
+    // particles' is read.
+    const std::string none = "the scene '" + spec.name + "' has none";
+    const char* particles = "particles (cloth and ropes)";
+    note(integrator != defaultSim.integrator, "integrator", particles, none);
+    note(spec.precision != weft::Precision::Double, "precision", particles, none + " (rigid bodies run in double)");
+    note(sim.forceStrategy != defaultSim.forceStrategy, "force_strategy", particles, none);
+    note(sim.effects.drag != 0 || sim.effects.wind.enabled || sim.effects.repulsion.enabled(), "effects", particles,
+         none);
+    note(sim.collision.any(), "collision", particles,
+         none + " (rigid bodies meet static rigid bodies, not collision obstacles)");
+    note(io.adaptive != defaults.adaptive || io.relativeTolerance != defaults.relativeTolerance ||
+             io.absoluteTolerance != defaults.absoluteTolerance || io.minSubstep != defaults.minSubstep ||
+             io.maxSubsteps != defaults.maxSubsteps || io.linearTolerance != defaults.linearTolerance ||
+             io.maxLinearIterations != defaults.maxLinearIterations || io.preconditioner != defaults.preconditioner ||
+             io.projectiveIterations != defaults.projectiveIterations,
+         "integration", particles, none);
+    note(rigid.particleContacts != defaultRigid.particleContacts ||
+             rigid.particleSupports != defaultRigid.particleSupports ||
+             rigid.particleThickness != defaultRigid.particleThickness,
+         "rigid_bodies.particle_contacts, particle_supports and particle_thickness", particles, none);
+  }
+  if (rigid.timeOfImpact == weft::RigidTimeOfImpact::Speculative)
+    note(!rigid.bodies.empty() && (rigid.rollbackPenetration != defaultRigid.rollbackPenetration ||
+                                   rigid.maxHalvings != defaultRigid.maxHalvings),
+         "rigid_bodies.rollback_penetration and max_halvings", "time_of_impact \"rollback\"",
+         "this run's is speculative");
+  const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
+  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive && !spec.bodies.empty()) {
     const std::string fixed = "this run takes fixed rk45 steps (integration.adaptive false or --fixed-step)";
     note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45's error control", fixed);
     note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45's error control", fixed);
     note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45's error control", fixed);
     note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45's error control", fixed);
   }
-  if (integrator != weft::IntegratorKind::Rk45) {
+  if (integrator != weft::IntegratorKind::Rk45 && !spec.bodies.empty()) {
     note(io.adaptive != defaults.adaptive, "integration.adaptive", "rk45", integrates);
     note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45", integrates);
     note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45", integrates);
     note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45", integrates);
     note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45", integrates);
   }
-  if (integrator != weft::IntegratorKind::ImplicitEuler) {
+  if (integrator != weft::IntegratorKind::ImplicitEuler && !spec.bodies.empty()) {
     note(io.linearTolerance != defaults.linearTolerance, "integration.cg_tolerance", "implicit", integrates);
     note(io.maxLinearIterations != defaults.maxLinearIterations, "integration.cg_max_iterations", "implicit",
          integrates);
     note(io.preconditioner != defaults.preconditioner, "integration.cg_preconditioner", "implicit", integrates);
   }
-  if (integrator != weft::IntegratorKind::Projective)
+  if (integrator != weft::IntegratorKind::Projective && !spec.bodies.empty())
     note(io.projectiveIterations != defaults.projectiveIterations, "integration.projective_iterations", "projective",
          integrates);
   const bool cloth = std::any_of(spec.bodies.begin(), spec.bodies.end(),
@@ -365,7 +441,6 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
   note(
       !spec.simulation.stability.enabled && spec.simulation.stability.maxStretch != weft::StabilityOptions{}.maxStretch,
       "stability.max_stretch", "the stability check", "stability.enabled is false");
-  const weft::RigidOptions& rigid = spec.simulation.rigid;
   note(!rigid.bodies.empty() && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg &&
            rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces,
        "rigid_bodies.ofg_faces", "narrow_phase \"ofg\"",
@@ -556,6 +631,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);
   if (frames) {
+    if (output.format == "obj" || output.format == "ply") writeFramesRecord(output, spec.name);
     if (o.resume)
       frames->resumeAt(sim.stepCount() / output.every + 1);
     else

@@ -103,10 +103,12 @@ inline std::vector<TinyNumber> tinyNumbers(std::string_view text) {
       std::size_t k = e + 1;
       const bool negative = k < token.size() && token[k] == '-';
       if (k < token.size() && (token[k] == '-' || token[k] == '+')) ++k;
-      for (; k < token.size() && digit(token[k]); ++k) exponent = std::min(exponent * 10 + (token[k] - '0'), 100000LL);
+      for (; k < token.size() && digit(token[k]); ++k)
+        exponent = std::min(exponent * 10 + (token[k] - '0'), 1000000000000000LL);
       if (negative) exponent = -exponent;
     }
-    if (nonZero && first + exponent < -300) out.push_back({ordinal, std::string(token.substr(0, 60))});
+    if (nonZero && first + exponent < -300)
+      out.push_back({ordinal, token.size() <= 60 ? std::string(token) : std::string(token.substr(0, 57)) + "..."});
     ++ordinal;
   }
   return out;

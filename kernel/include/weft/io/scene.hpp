@@ -130,8 +130,9 @@ SceneSpec parseScene(const std::string& text, const std::string& source = "scene
 /// embedded in the library: tools/scenes/meshes/torus.obj), rope-on-pegs (a rope falling
 /// across three capsules) and fast-ball (a small cloth fired at 100 m/s at a wall one
 /// triangle thin, dt = 1/60 s).
-/// size 0 = the default.
-/// Throws SceneError for an unknown name, listing the known ones.
+/// `size`: the grid side or rope particles, the boxes of stack or the bodies of pile; 0 =
+/// the default. Throws SceneError for an unknown name, listing the known ones, and for a
+/// size given to a scene of a fixed layout (ball-on-brick, bullet, slope).
 SceneSpec builtinSceneSpec(const std::string& name, Index size = 0);
 std::vector<std::string> builtinSceneNames();
 
