@@ -411,19 +411,18 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
          "rigid_bodies.rollback_penetration and max_halvings", "time_of_impact \"rollback\"",
          "this run's is speculative");
   const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive && !spec.bodies.empty()) {
-    const std::string fixed = "this run takes fixed rk45 steps (integration.adaptive false or --fixed-step)";
-    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45's error control", fixed);
-    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45's error control", fixed);
-    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45's error control", fixed);
-    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45's error control", fixed);
-  }
+  const auto errorControl = [&](const char* needs, const std::string& instead) {  // rk45's adaptive keys
+    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", needs, instead);
+    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", needs, instead);
+    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", needs, instead);
+    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", needs, instead);
+  };
+  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive && !spec.bodies.empty())
+    errorControl("rk45's error control",
+                 "this run takes fixed rk45 steps (integration.adaptive false or --fixed-step)");
   if (integrator != weft::IntegratorKind::Rk45 && !spec.bodies.empty()) {
     note(io.adaptive != defaults.adaptive, "integration.adaptive", "rk45", integrates);
-    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", "rk45", integrates);
-    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", "rk45", integrates);
-    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", "rk45", integrates);
-    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", "rk45", integrates);
+    errorControl("rk45", integrates);
   }
   if (integrator != weft::IntegratorKind::ImplicitEuler && !spec.bodies.empty()) {
     note(io.linearTolerance != defaults.linearTolerance, "integration.cg_tolerance", "implicit", integrates);
