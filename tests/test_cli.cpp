@@ -828,7 +828,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"pile --drag 1", "--drag", "has none"},
         BadOption{"slope --strategy gather", "--strategy", "has none"},
         BadOption{"ball-on-brick --size 4", "size", "fixed layout"}, BadOption{"bullet --size 9", "size", "got 9"},
-        BadOption{"slope --size 3", "size", "fixed layout"}, BadOption{"flag rope", "unexpected argument", "rope"}),
+        BadOption{"slope --size 3", "size", "fixed layout"},
+        BadOption{"hammock --narrow-phase exact", "--narrow-phase", "the scene 'hammock' has spheres only"},
+        BadOption{"flag rope", "unexpected argument", "rope"}),
     [](const auto& info) {
       std::string name = info.param.args;
       for (char& c : name)

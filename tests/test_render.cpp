@@ -147,6 +147,26 @@ TEST(Render, BadInputsAreRefusedNamingTheOption) {
   std::filesystem::remove_all(dir);
 }
 
+// A scene file's output section is weft run's: render says it does not use it (its
+// pictures go to --out), and writes nothing there.
+TEST(Render, TheScenesOutputSectionIsNamedAsNotUsed) {
+  const std::string dir = freshDirectory("unused");
+  std::filesystem::create_directories(dir);
+  const std::string file = dir + "/rope.json", frames = dir + "/frames";
+  std::ofstream(file) << R"({"name": "rope", "dt": 0.001, "steps": 2, "bodies": [{"type": "rope", "particles": 5}],
+    "output": {"directory": ")" +
+                             frames + R"(", "every": 3}})";
+  const CliRun run = render("'" + file + "' --out '" + dir + "/pictures' --steps 2 --size 64x48");
+  EXPECT_EQ(run.exitCode, 0) << run.out << run.err;
+  EXPECT_NE(run.err.find("weft render: note: output.directory applies to weft run's frames, and weft render draws "
+                         "into --out (not used)"),
+            std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find("weft render: note: output.every"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(frames));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(RenderCamera, FramingKeepsEveryCornerInsideTheMargin) {
   weftrender::Bounds box;
   box.add(Eigen::Vector3f(-1.f, 0.f, -0.2f));

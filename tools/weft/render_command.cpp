@@ -115,6 +115,8 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
 
 int renderScene(const RenderOptions& options) {
   const weft::SceneSpec spec = sceneFor(options.run);
+  for (const std::string& u : unusedSceneSettings(options.run, spec, "render"))
+    std::cerr << "weft render: note: " << u << " (not used)\n";
   return spec.precision == weft::Precision::Float ? render<float>(options, spec) : render<double>(options, spec);
 }
 

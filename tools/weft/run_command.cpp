@@ -362,15 +362,25 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
         "--time-of-impact rollback finds each pair's time of impact along its motion, and the "
         "scene '" +
         spec.name + "' sets rigid_bodies.continuous false: drop one of them");
+  const bool hulls = std::any_of(rigid.bodies.begin(), rigid.bodies.end(), [](const weft::RigidBodyDesc& b) {
+    return std::any_of(b.shapes.begin(), b.shapes.end(),
+                       [](const weft::RigidShapeDesc& s) { return s.kind != weft::RigidShapeDesc::Kind::Sphere; });
+  });
+  const std::string spheres = "the scene '" + spec.name + "' has spheres only (a sphere's test is its own)";
+  if (o.narrowPhase && !rigid.bodies.empty() && !hulls) refuse("--narrow-phase", "pairs of boxes and hulls", spheres);
+  if (o.ofgFaces && !rigid.bodies.empty() && !hulls) refuse("--ofg-faces", "pairs of boxes and hulls", spheres);
   if (o.ofgFaces && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg)
     refuse("--ofg-faces", "the Opposing Face Geometry narrow phase (--narrow-phase ofg)",
            std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
 }
 
+}  // namespace
+
 /// Settings of the scene file that this run does not read (the command line's are refused
-/// above, since a scene file may carry settings for several integrators and be run with
-/// --integrator): each is said on stderr and listed in the JSON summary.
-std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::SceneSpec& spec) {
+/// by sceneFor, since a scene file may carry settings for several integrators and be run
+/// with --integrator): each is said on stderr and listed in the JSON summary.
+std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::SceneSpec& spec,
+                                             const std::string& command) {
   std::vector<std::string> unused;
   const weft::SimulationOptions& sim = spec.simulation;
   const weft::IntegratorKind integrator = sim.integrator;
@@ -444,8 +454,14 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
            rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces,
        "rigid_bodies.ofg_faces", "narrow_phase \"ofg\"",
        std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
-  if (spec.output.directory.empty()) {
-    const weft::OutputSpec defaultOutput;
+  const weft::OutputSpec defaultOutput;
+  if (command != "run") {
+    // (render draws into --out; view draws on the screen, for as long as its window is open)
+    const std::string other = "weft " + command + (command == "render" ? " draws into --out" : " draws on screen");
+    note(!spec.output.directory.empty(), "output.directory", "weft run's frames", other);
+    note(spec.output.format != defaultOutput.format, "output.format", "weft run's frames", other);
+    note(spec.output.every != defaultOutput.every, "output.every", "weft run's frames", other);
+  } else if (spec.output.directory.empty()) {
     note(spec.output.format != defaultOutput.format, "output.format", "frames (output.directory or --out)",
          "this run writes none");
     // (A checkpoint's period is --every's only: the file's output.every sets the frames'.)
@@ -454,8 +470,6 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
   }
   return unused;
 }
-
-}  // namespace
 
 weft::SceneSpec sceneFor(const RunOptions& o) {
   // A built-in scene name, else a scene file (anything that exists or ends in .json);

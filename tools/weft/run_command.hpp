@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "weft/integrate/integrator.hpp"
 #include "weft/io/scene.hpp"
@@ -43,6 +44,14 @@ struct RunOptions {
 /// given applied over its values: what `weft run`, `weft render` and `weft view` simulate.
 /// Throws for a bad scene (std::exception naming file, field and value).
 weft::SceneSpec sceneFor(const RunOptions& options);
+
+/// The scene file's settings that `command` ("run", "render" or "view") does not read,
+/// given a value other than their default ("integration.rtol applies to rk45, and this run
+/// integrates with rk4"); render and view take none of the file's `output` section, and
+/// view none of its length. Options given on the command line that a run would not read
+/// are refused by sceneFor instead.
+std::vector<std::string> unusedSceneSettings(const RunOptions& options, const weft::SceneSpec& spec,
+                                             const std::string& command = "run");
 
 /// Runs the scene; prints a summary (or one JSON object). Returns the process exit code:
 /// 0 when every step succeeded, 3 when the stability check stopped the run, 130 / 143 when

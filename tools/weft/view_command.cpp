@@ -463,6 +463,8 @@ void drawReadout(weftrender::Renderer& renderer, const weftrender::Viewport& vp,
 
 int viewScene(const ViewOptions& o) {
   weft::SceneSpec spec = sceneFor(o.run);
+  for (const std::string& u : unusedSceneSettings(o.run, spec, "view"))
+    std::cerr << "weft view: note: " << u << " (not used)\n";
   if (o.screenshot) checkOutputFile(*o.screenshot, "--screenshot");
   const char* display = std::getenv("DISPLAY");
   const char* wayland = std::getenv("WAYLAND_DISPLAY");
