@@ -824,6 +824,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"stack --ofg-faces 4", "--ofg-faces", "this run uses witness"},
         BadOption{"stack --narrow-phase ofg --ofg-faces 65", "--ofg-faces", "65"},
         BadOption{"bullet --integrator rk45", "--integrator", "the scene 'bullet' has none"},
+        BadOption{"stack --cg-tolerance 1e-3", "--cg-tolerance", "particles (cloth and ropes), and the scene 'stack'"},
         BadOption{"stack --precision float", "--precision", "run in double"},
         BadOption{"pile --drag 1", "--drag", "has none"},
         BadOption{"slope --strategy gather", "--strategy", "has none"},

@@ -18,6 +18,7 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "output_file.hpp"
 #include "process_memory.hpp"
@@ -336,6 +337,15 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
     if (o.precision) refuse("--precision", particles, none);
     if (o.drag) refuse("--drag", particles, none);
     if (o.strategy) refuse("--strategy", particles, none);
+    const std::pair<bool, const char*> integration[] = {{o.relativeTolerance.has_value(), "--rtol"},
+                                                        {o.absoluteTolerance.has_value(), "--atol"},
+                                                        {o.fixedStep, "--fixed-step"},
+                                                        {o.linearTolerance.has_value(), "--cg-tolerance"},
+                                                        {o.maxLinearIterations.has_value(), "--cg-max-iterations"},
+                                                        {o.preconditioner.has_value(), "--cg-preconditioner"},
+                                                        {o.projectiveIterations.has_value(), "--pd-iterations"}};
+    for (const auto& [given, option] : integration)
+      if (given) refuse(option, particles, none);
   }
   const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
   const bool rk45 = integrator == weft::IntegratorKind::Rk45;
