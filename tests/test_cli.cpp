@@ -559,7 +559,7 @@ TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
     "integrator": "rk45", "integration": {"adaptive": false, "min_substep": 1e-9}, "output": {"format": "ply"}})";
   EXPECT_EQ(runJson("run " + fixed)["unused_settings"],
             (nlohmann::json{"integration.min_substep applies to rk45's error control, and this run takes fixed rk45 "
-                            "steps (integration.adaptive false or --fixed-step)",
+                            "steps (--fixed-step or integration.adaptive false)",
                             "output.format applies to frames (output.directory or --out), and this run writes none"}));
   // Rigid bodies only: the particles' settings, rollback's with speculative contacts, and
   // ofg_faces with another narrow phase.

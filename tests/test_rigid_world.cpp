@@ -282,7 +282,7 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   o = stackScene(2);
   o.timeOfImpact = RigidTimeOfImpact::Rollback;
   o.continuous = false;
-  expectInvalid(o, "rigid.continuous must be true with timeOfImpact rollback");
+  expectInvalid(o, "rigid.continuous must be true when rollback finds the time of impact");
   o = stackScene(2);
   o.narrowPhase.ofgFaces = kMaxOfgFaces + 1;  // (the OFG's arrays hold kMaxOfgFaces)
   expectInvalid(o, "rigid.narrowPhase.ofgFaces must be in [1, 64], got 65");

@@ -1090,7 +1090,7 @@ const std::vector<BadScene>& badScenes() {
       {"rigid_static_density", rigid(R"(, "motion": "static", "density": 300)"), "rigid_bodies.bodies[1].density",
        "is for dynamic bodies only (motion is static"},
       {"rigid_rollback_not_continuous", rigid("", R"("time_of_impact": "rollback", "continuous": false, )"),
-       "rigid_bodies.continuous", R"(must be true with time_of_impact "rollback")"},
+       "rigid_bodies.continuous", "must be true when rollback finds the time of impact"},
       {"rigid_supports_without_contacts", rigid("", R"("particle_contacts": false, "particle_supports": true, )"),
        "rigid_bodies.particle_supports", "needs particle_contacts"},
       {"rigid_ofg_faces_above_its_arrays", rigid("", R"("narrow_phase": "ofg", "ofg_faces": 65, )"),

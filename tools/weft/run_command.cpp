@@ -109,6 +109,13 @@ std::string workLine(const weft::StepWork& w, std::int64_t steps) {
   return out.str();
 }
 
+/// The file of frame k: frame_000042.obj.
+std::string frameFileName(std::int64_t k, const std::string& format) {
+  char name[48];
+  std::snprintf(name, sizeof name, "frame_%06lld.", static_cast<long long>(k));
+  return name + format;
+}
+
 /// Writes the frames of `weft run --out DIR`: one OBJ or PLY file per frame, or all
 /// frames into DIR/frames.wcache, or into one animated DIR/run.glb.
 template <class S>
@@ -144,9 +151,7 @@ class FrameSink {
     } else if (gltf_) {
       gltf_->append(state);
     } else {
-      char name[32];
-      std::snprintf(name, sizeof name, "frame_%06lld.%s", static_cast<long long>(written_), format_.c_str());
-      const std::string path = (std::filesystem::path(dir_) / name).string();
+      const std::string path = (std::filesystem::path(dir_) / frameFileName(written_, format_)).string();
       if (format_ == "ply")
         weft::writePly(path, state.x, topology_);
       else
@@ -239,11 +244,7 @@ void checkResumedFrames(const weft::OutputSpec& output, std::int64_t step) {
     return;
   }
   const std::int64_t next = step / output.every + 1;
-  const auto frameName = [&](std::int64_t k) {
-    char name[48];
-    std::snprintf(name, sizeof name, "frame_%06lld.%s", static_cast<long long>(k), output.format.c_str());
-    return std::string(name);
-  };
+  const auto frameName = [&](std::int64_t k) { return frameFileName(k, output.format); };
   std::int64_t highest = -1;
   std::optional<std::pair<std::int64_t, std::string>> other;  // the other format's first frame
   for (const auto& entry : std::filesystem::directory_iterator(output.directory, error)) {
@@ -314,9 +315,41 @@ class Progress {
   bool drawn_ = false;
 };
 
-}  // namespace
+/// An integrator setting: its option on the command line (null: none), its key in scene
+/// files, the integrator that reads it (and whether only rk45's error control does), and
+/// whether the command line gave it or the scene's value differs from the default. The
+/// refusals of options and the notes on scene keys below both go through this one list.
+struct IntegratorSetting {
+  const char* option;
+  const char* key;
+  weft::IntegratorKind reader;
+  bool errorControl;
+  bool given, set;
+};
 
-namespace {
+std::vector<IntegratorSetting> integratorSettings(const RunOptions& o, const weft::IntegratorOptions& io) {
+  const weft::IntegratorOptions d;
+  using K = weft::IntegratorKind;
+  return {
+      {"--rtol", "integration.rtol", K::Rk45, true, o.relativeTolerance.has_value(),
+       io.relativeTolerance != d.relativeTolerance},
+      {"--atol", "integration.atol", K::Rk45, true, o.absoluteTolerance.has_value(),
+       io.absoluteTolerance != d.absoluteTolerance},
+      {nullptr, "integration.min_substep", K::Rk45, true, false, io.minSubstep != d.minSubstep},
+      {nullptr, "integration.max_substeps", K::Rk45, true, false, io.maxSubsteps != d.maxSubsteps},
+      {"--fixed-step", "integration.adaptive", K::Rk45, false, o.fixedStep, io.adaptive != d.adaptive},
+      {"--cg-tolerance", "integration.cg_tolerance", K::ImplicitEuler, false, o.linearTolerance.has_value(),
+       io.linearTolerance != d.linearTolerance},
+      {"--cg-max-iterations", "integration.cg_max_iterations", K::ImplicitEuler, false,
+       o.maxLinearIterations.has_value(), io.maxLinearIterations != d.maxLinearIterations},
+      {"--cg-preconditioner", "integration.cg_preconditioner", K::ImplicitEuler, false, o.preconditioner.has_value(),
+       io.preconditioner != d.preconditioner},
+      {"--pd-iterations", "integration.projective_iterations", K::Projective, false, o.projectiveIterations.has_value(),
+       io.projectiveIterations != d.projectiveIterations},
+  };
+}
+
+const char* const kFixedRk45 = "this run takes fixed rk45 steps (--fixed-step or integration.adaptive false)";
 
 /// An option given on the command line that this run would not read is refused, naming
 /// the option and what it needs: `--rtol` with euler would otherwise run as if it were not
@@ -337,31 +370,17 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
     if (o.precision) refuse("--precision", particles, none);
     if (o.drag) refuse("--drag", particles, none);
     if (o.strategy) refuse("--strategy", particles, none);
-    const std::pair<bool, const char*> integration[] = {{o.relativeTolerance.has_value(), "--rtol"},
-                                                        {o.absoluteTolerance.has_value(), "--atol"},
-                                                        {o.fixedStep, "--fixed-step"},
-                                                        {o.linearTolerance.has_value(), "--cg-tolerance"},
-                                                        {o.maxLinearIterations.has_value(), "--cg-max-iterations"},
-                                                        {o.preconditioner.has_value(), "--cg-preconditioner"},
-                                                        {o.projectiveIterations.has_value(), "--pd-iterations"}};
-    for (const auto& [given, option] : integration)
-      if (given) refuse(option, particles, none);
   }
   const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  const bool rk45 = integrator == weft::IntegratorKind::Rk45;
-  const bool implicit = integrator == weft::IntegratorKind::ImplicitEuler;
-  const bool adaptive = spec.simulation.integration.adaptive;
-  const std::string fixed = "this run takes fixed rk45 steps (--fixed-step or integration.adaptive false)";
-  if (o.relativeTolerance && rk45 && !adaptive) refuse("--rtol", "rk45's error control", fixed);
-  if (o.absoluteTolerance && rk45 && !adaptive) refuse("--atol", "rk45's error control", fixed);
-  if (o.relativeTolerance && !rk45) refuse("--rtol", "--integrator rk45", integrates);
-  if (o.absoluteTolerance && !rk45) refuse("--atol", "--integrator rk45", integrates);
-  if (o.fixedStep && !rk45) refuse("--fixed-step", "--integrator rk45", integrates);
-  if (o.linearTolerance && !implicit) refuse("--cg-tolerance", "--integrator implicit", integrates);
-  if (o.maxLinearIterations && !implicit) refuse("--cg-max-iterations", "--integrator implicit", integrates);
-  if (o.preconditioner && !implicit) refuse("--cg-preconditioner", "--integrator implicit", integrates);
-  if (o.projectiveIterations && integrator != weft::IntegratorKind::Projective)
-    refuse("--pd-iterations", "--integrator projective", integrates);
+  for (const IntegratorSetting& s : integratorSettings(o, spec.simulation.integration)) {
+    if (!s.given) continue;
+    if (spec.bodies.empty())
+      refuse(s.option, "particles (cloth and ropes)",
+             "the scene '" + spec.name + "' has none (its rigid bodies run in double with their own solver)");
+    if (integrator != s.reader)
+      refuse(s.option, std::string("--integrator ") + weft::integratorName(s.reader), integrates);
+    if (s.errorControl && !spec.simulation.integration.adaptive) refuse(s.option, "rk45's error control", kFixedRk45);
+  }
   const weft::RigidOptions& rigid = spec.simulation.rigid;
   const std::string noBodies = "the scene '" + spec.name + "' has no rigid bodies";
   if (o.narrowPhase && rigid.bodies.empty()) refuse("--narrow-phase", "scenes with rigid bodies", noBodies);
@@ -395,7 +414,6 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
   const weft::SimulationOptions& sim = spec.simulation;
   const weft::IntegratorKind integrator = sim.integrator;
   const weft::IntegratorOptions& io = sim.integration;
-  const weft::IntegratorOptions defaults;
   const weft::SimulationOptions defaultSim;
   const auto note = [&](bool set, const char* key, const char* needs, const std::string& instead) {
     if (set) unused.push_back(std::string(key) + " applies to " + needs + ", and " + instead);
@@ -414,12 +432,9 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
          none);
     note(sim.collision.any(), "collision", particles,
          none + " (rigid bodies meet static rigid bodies, not collision obstacles)");
-    note(io.adaptive != defaults.adaptive || io.relativeTolerance != defaults.relativeTolerance ||
-             io.absoluteTolerance != defaults.absoluteTolerance || io.minSubstep != defaults.minSubstep ||
-             io.maxSubsteps != defaults.maxSubsteps || io.linearTolerance != defaults.linearTolerance ||
-             io.maxLinearIterations != defaults.maxLinearIterations || io.preconditioner != defaults.preconditioner ||
-             io.projectiveIterations != defaults.projectiveIterations,
-         "integration", particles, none);
+    const std::vector<IntegratorSetting> settings = integratorSettings(o, io);
+    note(std::any_of(settings.begin(), settings.end(), [](const IntegratorSetting& s) { return s.set; }), "integration",
+         particles, none);
     note(rigid.particleContacts != defaultRigid.particleContacts ||
              rigid.particleSupports != defaultRigid.particleSupports ||
              rigid.particleThickness != defaultRigid.particleThickness,
@@ -431,28 +446,13 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
          "rigid_bodies.rollback_penetration and max_halvings", "time_of_impact \"rollback\"",
          "this run's is speculative");
   const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  const auto errorControl = [&](const char* needs, const std::string& instead) {  // rk45's adaptive keys
-    note(io.relativeTolerance != defaults.relativeTolerance, "integration.rtol", needs, instead);
-    note(io.absoluteTolerance != defaults.absoluteTolerance, "integration.atol", needs, instead);
-    note(io.minSubstep != defaults.minSubstep, "integration.min_substep", needs, instead);
-    note(io.maxSubsteps != defaults.maxSubsteps, "integration.max_substeps", needs, instead);
-  };
-  if (integrator == weft::IntegratorKind::Rk45 && !io.adaptive && !spec.bodies.empty())
-    errorControl("rk45's error control",
-                 "this run takes fixed rk45 steps (integration.adaptive false or --fixed-step)");
-  if (integrator != weft::IntegratorKind::Rk45 && !spec.bodies.empty()) {
-    note(io.adaptive != defaults.adaptive, "integration.adaptive", "rk45", integrates);
-    errorControl("rk45", integrates);
-  }
-  if (integrator != weft::IntegratorKind::ImplicitEuler && !spec.bodies.empty()) {
-    note(io.linearTolerance != defaults.linearTolerance, "integration.cg_tolerance", "implicit", integrates);
-    note(io.maxLinearIterations != defaults.maxLinearIterations, "integration.cg_max_iterations", "implicit",
-         integrates);
-    note(io.preconditioner != defaults.preconditioner, "integration.cg_preconditioner", "implicit", integrates);
-  }
-  if (integrator != weft::IntegratorKind::Projective && !spec.bodies.empty())
-    note(io.projectiveIterations != defaults.projectiveIterations, "integration.projective_iterations", "projective",
-         integrates);
+  if (!spec.bodies.empty())
+    for (const IntegratorSetting& s : integratorSettings(o, io)) {
+      if (integrator != s.reader)
+        note(s.set, s.key, weft::integratorName(s.reader), integrates);
+      else if (s.errorControl && !io.adaptive)
+        note(s.set, s.key, "rk45's error control", kFixedRk45);
+    }
   const bool cloth = std::any_of(spec.bodies.begin(), spec.bodies.end(),
                                  [](const weft::BodySpec& b) { return b.kind != weft::BodyKind::Rope; });
   note(spec.simulation.selfCollision.enabled && !cloth, "self_collision", "cloth (its triangles)",

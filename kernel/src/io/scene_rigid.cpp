@@ -137,10 +137,6 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
   o.timeOfImpact = r.choice(j, f, "time_of_impact", "speculative", {"speculative", "rollback"}) == "rollback"
                        ? RigidTimeOfImpact::Rollback
                        : RigidTimeOfImpact::Speculative;
-  if (o.timeOfImpact == RigidTimeOfImpact::Rollback && !o.continuous)
-    r.fail(Reader::join(f, "continuous"),
-           "must be true with time_of_impact \"rollback\", which finds each pair's "
-           "time of impact along its motion, got false");
   o.rollbackPenetration = r.anyNumber(j, f, "rollback_penetration", o.rollbackPenetration);
   o.maxHalvings = r.anyInt(j, f, "max_halvings", o.maxHalvings);
   o.particleThickness = r.anyNumber(j, f, "particle_thickness", o.particleThickness);

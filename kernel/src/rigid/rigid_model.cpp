@@ -100,7 +100,7 @@ void validateRigidOptions(const RigidOptions& o) {
   // Rollback cuts the step at the time of impact along each pair's motion: it is continuous
   // detection, so `continuous = false` would be overruled without a word.
   require(o.continuous || o.timeOfImpact != RigidTimeOfImpact::Rollback, r + "continuous",
-          "true with timeOfImpact rollback (rollback finds each pair's time of impact along its motion)", "false");
+          "true when rollback finds the time of impact (it finds each pair's along its motion)", "false");
   require(o.narrowPhase.ofgFaces >= 1 && o.narrowPhase.ofgFaces <= kMaxOfgFaces, r + "narrowPhase.ofgFaces",
           "in [1, " + std::to_string(kMaxOfgFaces) + "]", std::to_string(o.narrowPhase.ofgFaces));
   for (std::size_t b = 0; b < o.bodies.size(); ++b) {
