@@ -577,10 +577,66 @@ TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
                 "integration applies to particles (cloth and ropes), and the scene 'bodies' has none",
                 "rigid_bodies.particle_contacts, particle_supports and particle_thickness applies to particles (cloth "
                 "and ropes), and the scene 'bodies' has none",
-                "rigid_bodies.rollback_penetration and max_halvings applies to time_of_impact \"rollback\", and this "
-                "run's is speculative",
+                "rigid_bodies.max_halvings applies to time_of_impact \"rollback\", and this run's is speculative",
                 "rigid_bodies.ofg_faces applies to narrow_phase \"ofg\", and this run uses witness"}));
+  // A key the file writes is named even at its default value: the user wrote it, so the
+  // user expects it to act.
+  const std::string defaults = (dir / "defaults.json").string();
+  std::ofstream(defaults) << R"({"name": "defaults", "dt": 0.001, "steps": 2, "integrator": "rk4",
+    "bodies": [{"type": "rope", "particles": 5}], "integration": {"rtol": 1e-6, "projective_iterations": 10}})";
+  EXPECT_EQ(runJson("run " + defaults)["unused_settings"],
+            (nlohmann::json{"integration.rtol applies to rk45, and this run integrates with rk4",
+                            "integration.projective_iterations applies to projective, and this run integrates with "
+                            "rk4"}));
+  // Settings whose subject the scene lacks: a narrow phase with spheres only, the shape of
+  // gusts in a steady wind, feature edges without continuous detection against meshes, and
+  // bend springs on a rope of two particles.
+  const std::string spheres = (dir / "spheres.json").string();
+  std::ofstream(spheres) << R"({"name": "spheres", "dt": 0.01, "steps": 2,
+    "rigid_bodies": {"narrow_phase": "exact",
+      "bodies": [{"motion": "static", "shapes": [{"type": "sphere", "radius": 1}]},
+                 {"shapes": [{"type": "sphere", "radius": 0.1}], "position": [0, 2, 0]}]}})";
+  EXPECT_EQ(runJson("run " + spheres)["unused_settings"],
+            (nlohmann::json{"rigid_bodies.narrow_phase applies to pairs of boxes and hulls, and the scene 'spheres' "
+                            "has spheres only (a sphere's test is its own)"}));
+  const std::string lacking = (dir / "lacking.json").string();
+  std::ofstream(lacking) << R"({"name": "lacking", "dt": 0.001, "steps": 2,
+    "bodies": [{"type": "rope", "particles": 2, "materials": {"bend": {"stiffness": 5}}}],
+    "effects": {"wind": {"velocity": [1, 0, 0], "gust_period": 2, "seed": 1}},
+    "collision": {"continuous": false, "edges": false,
+      "obstacles": [{"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0]}]}})";
+  EXPECT_EQ(runJson("run " + lacking)["unused_settings"],
+            (nlohmann::json{
+                "effects.wind.gust_period applies to gusts (effects.wind.gust_strength > 0), and this run's wind is "
+                "steady",
+                "effects.wind.seed applies to gusts (effects.wind.gust_strength > 0), and this run's wind is steady",
+                "collision.edges applies to continuous detection against mesh obstacles, and the scene 'lacking' has "
+                "no mesh obstacle",
+                "bodies[0].materials.bend applies to springs between every second particle, and this rope has 2 "
+                "particles"}));
   std::filesystem::remove_all(dir);
+}
+
+// weft's own example files use every setting they write: a run of each names none (a key
+// an example writes for nothing would teach users to write it too).
+TEST(Cli, EveryExampleFileUsesEverySettingItWrites) {
+  // (From a directory of its own: the examples that write frames write them below it.)
+  const std::filesystem::path dir = ::testing::TempDir() + "weft_cli_examples";
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path before = std::filesystem::current_path();
+  std::filesystem::current_path(dir);
+  int examples = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(WEFT_SOURCE_DIR) + "/tools/scenes")) {
+    if (entry.path().extension() != ".json") continue;
+    ++examples;
+    const nlohmann::json j = runJson("run " + entry.path().string() + " --steps 1");
+    EXPECT_TRUE(j.is_object()) << entry.path();
+    if (!j.is_object()) continue;
+    EXPECT_EQ(j["unused_settings"], nlohmann::json::array()) << entry.path() << ": " << j["unused_settings"].dump();
+  }
+  std::filesystem::current_path(before);
+  std::filesystem::remove_all(dir);
+  EXPECT_GE(examples, 20);
 }
 
 // A thread count above what the machine runs is run on fewer; soak says so, in the table's

@@ -168,6 +168,17 @@ std::map<std::string, std::set<std::string>> exampleKeys() {
   return used;
 }
 
+// The reader records every key the file wrote, by its field path, whatever its value (the
+// CLI names the ones a run does not use).
+TEST(SceneReader, RecordsTheKeysTheFileWrote) {
+  const SceneSpec s = parseScene(R"({"dt": 0.001, "steps": 1, "integration": {"rtol": 1e-6},
+    "bodies": [{"type": "rope", "materials": {"bend": {"stiffness": 5}}}]})");
+  EXPECT_EQ(s.givenKeys, (std::set<std::string>{"dt", "steps", "integration", "integration.rtol", "bodies",
+                                                "bodies[0].type", "bodies[0].materials", "bodies[0].materials.bend",
+                                                "bodies[0].materials.bend.stiffness"}));
+  EXPECT_TRUE(builtinSceneSpec("flag").givenKeys.empty());
+}
+
 TEST(SceneExamples, UseEveryKeyTheReaderAccepts) {
   // The reader's own lists (an unknown key in each kind of object), against the keys the
   // examples use there.

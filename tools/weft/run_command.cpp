@@ -16,6 +16,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -327,10 +328,13 @@ struct IntegratorSetting {
   bool given, set;
 };
 
-std::vector<IntegratorSetting> integratorSettings(const RunOptions& o, const weft::IntegratorOptions& io) {
+/// The integrators' settings; `given` says the command line gave one, `set` that the scene
+/// file wrote its key or the run's value is not the default.
+std::vector<IntegratorSetting> integratorSettings(const RunOptions& o, const weft::IntegratorOptions& io,
+                                                  const std::set<std::string>& fileKeys) {
   const weft::IntegratorOptions d;
   using K = weft::IntegratorKind;
-  return {
+  std::vector<IntegratorSetting> settings = {
       {"--rtol", "integration.rtol", K::Rk45, true, o.relativeTolerance.has_value(),
        io.relativeTolerance != d.relativeTolerance},
       {"--atol", "integration.atol", K::Rk45, true, o.absoluteTolerance.has_value(),
@@ -347,6 +351,8 @@ std::vector<IntegratorSetting> integratorSettings(const RunOptions& o, const wef
       {"--pd-iterations", "integration.projective_iterations", K::Projective, false, o.projectiveIterations.has_value(),
        io.projectiveIterations != d.projectiveIterations},
   };
+  for (IntegratorSetting& setting : settings) setting.set = setting.set || fileKeys.count(setting.key) > 0;
+  return settings;
 }
 
 const char* const kFixedRk45 = "this run takes fixed rk45 steps (--fixed-step or integration.adaptive false)";
@@ -372,7 +378,7 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
     if (o.strategy) refuse("--strategy", particles, none);
   }
   const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  for (const IntegratorSetting& s : integratorSettings(o, spec.simulation.integration)) {
+  for (const IntegratorSetting& s : integratorSettings(o, spec.simulation.integration, spec.givenKeys)) {
     if (!s.given) continue;
     if (spec.bodies.empty())
       refuse(s.option, "particles (cloth and ropes)",
@@ -415,68 +421,132 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
   const weft::IntegratorKind integrator = sim.integrator;
   const weft::IntegratorOptions& io = sim.integration;
   const weft::SimulationOptions defaultSim;
-  const auto note = [&](bool set, const char* key, const char* needs, const std::string& instead) {
-    if (set) unused.push_back(std::string(key) + " applies to " + needs + ", and " + instead);
+  // A setting counts as given when the file wrote its key (whatever the value) or, for a
+  // spec without a file, when it differs from its default.
+  const auto written = [&](const std::string& key) {
+    // The key itself or any key below it ("effects" is given by "effects.drag").
+    const auto it = spec.givenKeys.lower_bound(key);
+    return it != spec.givenKeys.end() &&
+           (*it == key || (it->starts_with(key) && (it->at(key.size()) == '.' || it->at(key.size()) == '[')));
   };
+  const auto note = [&](bool set, const std::string& key, const std::string& needs, const std::string& instead) {
+    if (set) unused.push_back(key + " applies to " + needs + ", and " + instead);
+  };
+  const auto noteKey = [&](bool nonDefault, const std::string& key, const std::string& needs,
+                           const std::string& instead) { note(nonDefault || written(key), key, needs, instead); };
   const weft::RigidOptions& rigid = sim.rigid;
   const weft::RigidOptions defaultRigid;
+  const std::vector<IntegratorSetting> settings = integratorSettings(o, io, spec.givenKeys);
   if (spec.bodies.empty()) {
     // Rigid bodies only: they run in double with their own solver, and nothing of the
     // particles' is read.
     const std::string none = "the scene '" + spec.name + "' has none";
     const char* particles = "particles (cloth and ropes)";
-    note(integrator != defaultSim.integrator, "integrator", particles, none);
-    note(spec.precision != weft::Precision::Double, "precision", particles, none + " (rigid bodies run in double)");
-    note(sim.forceStrategy != defaultSim.forceStrategy, "force_strategy", particles, none);
-    note(sim.effects.drag != 0 || sim.effects.wind.enabled || sim.effects.repulsion.enabled(), "effects", particles,
-         none);
-    note(sim.collision.any(), "collision", particles,
-         none + " (rigid bodies meet static rigid bodies, not collision obstacles)");
-    const std::vector<IntegratorSetting> settings = integratorSettings(o, io);
+    noteKey(integrator != defaultSim.integrator, "integrator", particles, none);
+    noteKey(spec.precision != weft::Precision::Double, "precision", particles, none + " (rigid bodies run in double)");
+    noteKey(sim.forceStrategy != defaultSim.forceStrategy, "force_strategy", particles, none);
+    noteKey(sim.effects.drag != 0 || sim.effects.wind.enabled || sim.effects.repulsion.enabled(), "effects", particles,
+            none);
+    noteKey(sim.collision.any(), "collision", particles,
+            none + " (rigid bodies meet static rigid bodies, not collision obstacles)");
     note(std::any_of(settings.begin(), settings.end(), [](const IntegratorSetting& s) { return s.set; }), "integration",
          particles, none);
     note(rigid.particleContacts != defaultRigid.particleContacts ||
              rigid.particleSupports != defaultRigid.particleSupports ||
-             rigid.particleThickness != defaultRigid.particleThickness,
+             rigid.particleThickness != defaultRigid.particleThickness || written("rigid_bodies.particle_contacts") ||
+             written("rigid_bodies.particle_supports") || written("rigid_bodies.particle_thickness"),
          "rigid_bodies.particle_contacts, particle_supports and particle_thickness", particles, none);
-  }
-  if (rigid.timeOfImpact == weft::RigidTimeOfImpact::Speculative)
-    note(!rigid.bodies.empty() && (rigid.rollbackPenetration != defaultRigid.rollbackPenetration ||
-                                   rigid.maxHalvings != defaultRigid.maxHalvings),
-         "rigid_bodies.rollback_penetration and max_halvings", "time_of_impact \"rollback\"",
-         "this run's is speculative");
-  const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
-  if (!spec.bodies.empty())
-    for (const IntegratorSetting& s : integratorSettings(o, io)) {
+  } else {
+    const std::string integrates = std::string("this run integrates with ") + weft::integratorName(integrator);
+    for (const IntegratorSetting& s : settings) {
       if (integrator != s.reader)
         note(s.set, s.key, weft::integratorName(s.reader), integrates);
       else if (s.errorControl && !io.adaptive)
         note(s.set, s.key, "rk45's error control", kFixedRk45);
     }
+  }
+  if (!rigid.bodies.empty()) {
+    if (rigid.timeOfImpact == weft::RigidTimeOfImpact::Speculative) {
+      const char* rollback = "time_of_impact \"rollback\"";
+      const char* speculative = "this run's is speculative";
+      noteKey(rigid.rollbackPenetration != defaultRigid.rollbackPenetration, "rigid_bodies.rollback_penetration",
+              rollback, speculative);
+      noteKey(rigid.maxHalvings != defaultRigid.maxHalvings, "rigid_bodies.max_halvings", rollback, speculative);
+    }
+    const bool hulls = std::any_of(rigid.bodies.begin(), rigid.bodies.end(), [](const weft::RigidBodyDesc& b) {
+      return std::any_of(b.shapes.begin(), b.shapes.end(),
+                         [](const weft::RigidShapeDesc& s) { return s.kind != weft::RigidShapeDesc::Kind::Sphere; });
+    });
+    const char* pairs = "pairs of boxes and hulls";
+    const std::string spheres = "the scene '" + spec.name + "' has spheres only (a sphere's test is its own)";
+    if (!hulls) {
+      noteKey(rigid.narrowPhase.method != weft::NarrowPhaseOptions{}.method, "rigid_bodies.narrow_phase", pairs,
+              spheres);
+      noteKey(rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces, "rigid_bodies.ofg_faces", pairs,
+              spheres);
+    } else if (rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg) {
+      noteKey(rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces, "rigid_bodies.ofg_faces",
+              "narrow_phase \"ofg\"",
+              std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
+    }
+  }
   const bool cloth = std::any_of(spec.bodies.begin(), spec.bodies.end(),
                                  [](const weft::BodySpec& b) { return b.kind != weft::BodyKind::Rope; });
-  note(spec.simulation.selfCollision.enabled && !cloth, "self_collision", "cloth (its triangles)",
-       "the scene '" + spec.name + "' has none");
-  note(
-      !spec.simulation.stability.enabled && spec.simulation.stability.maxStretch != weft::StabilityOptions{}.maxStretch,
-      "stability.max_stretch", "the stability check", "stability.enabled is false");
-  note(!rigid.bodies.empty() && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg &&
-           rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces,
-       "rigid_bodies.ofg_faces", "narrow_phase \"ofg\"",
-       std::string("this run uses ") + weft::narrowPhaseMethodName(rigid.narrowPhase.method));
+  if (!cloth)
+    noteKey(spec.simulation.selfCollision.enabled, "self_collision", "cloth (its triangles)",
+            "the scene '" + spec.name + "' has none");
+  if (!spec.bodies.empty()) {
+    // Wind gusts: their shape with no gusts to shape.
+    const weft::WindEffect& wind = sim.effects.wind;
+    if (wind.enabled && wind.gustStrength == 0)
+      for (const char* key : {"gust_scale", "gust_period", "gust_modes", "seed"})
+        noteKey(false, std::string("effects.wind.") + key, "gusts (effects.wind.gust_strength > 0)",
+                "this run's wind is steady");
+    // The mesh obstacles' feature edges and corners: continuous detection against meshes.
+    const weft::CollisionOptions& c = sim.collision;
+    const weft::CollisionOptions dc;
+    const bool meshes = !spec.meshObstacles.empty() || !c.meshes.empty();
+    const char* features = "continuous detection against mesh obstacles";
+    const std::string why =
+        !meshes ? "the scene '" + spec.name + "' has no mesh obstacle" : std::string("collision.continuous is false");
+    if (!meshes || !c.continuous) {
+      noteKey(c.edges != dc.edges, "collision.edges", features, why);
+      noteKey(c.corners != dc.corners, "collision.corners", features, why);
+      noteKey(c.featureAngle != dc.featureAngle, "collision.feature_angle", features, why);
+    }
+    // Materials of spring families a body's size leaves without a spring (a family its
+    // flags leave out is refused by the reader).
+    for (size_t k = 0; k < spec.bodies.size(); ++k) {
+      const weft::BodySpec& b = spec.bodies[k];
+      const std::string f = "bodies[" + std::to_string(k) + "].materials.";
+      if (b.kind == weft::BodyKind::Rope && b.rope.particleCount < 3)
+        noteKey(false, f + "bend", "springs between every second particle",
+                "this rope has " + std::to_string(b.rope.particleCount) + " particles");
+      if (b.kind == weft::BodyKind::ClothGrid && b.grid.width < 3 && b.grid.height < 3)
+        noteKey(false, f + "bend", "springs between every second particle of a row or column",
+                "this grid is " + std::to_string(b.grid.width) + " x " + std::to_string(b.grid.height));
+      if (b.kind == weft::BodyKind::ClothGrid && (b.grid.width < 2 || b.grid.height < 2))
+        noteKey(false, f + "shear", "the diagonals of the grid's cells",
+                "this grid is " + std::to_string(b.grid.width) + " x " + std::to_string(b.grid.height));
+    }
+  }
+  if (!spec.simulation.stability.enabled)
+    noteKey(spec.simulation.stability.maxStretch != weft::StabilityOptions{}.maxStretch, "stability.max_stretch",
+            "the stability check", "stability.enabled is false");
   const weft::OutputSpec defaultOutput;
   if (command != "run") {
     // (render draws into --out; view draws on the screen, for as long as its window is open)
     const std::string other = "weft " + command + (command == "render" ? " draws into --out" : " draws on screen");
-    note(!spec.output.directory.empty(), "output.directory", "weft run's frames", other);
-    note(spec.output.format != defaultOutput.format, "output.format", "weft run's frames", other);
-    note(spec.output.every != defaultOutput.every, "output.every", "weft run's frames", other);
+    noteKey(!spec.output.directory.empty(), "output.directory", "weft run's frames", other);
+    noteKey(spec.output.format != defaultOutput.format, "output.format", "weft run's frames", other);
+    noteKey(spec.output.every != defaultOutput.every, "output.every", "weft run's frames", other);
   } else if (spec.output.directory.empty()) {
-    note(spec.output.format != defaultOutput.format, "output.format", "frames (output.directory or --out)",
-         "this run writes none");
+    noteKey(spec.output.format != defaultOutput.format, "output.format", "frames (output.directory or --out)",
+            "this run writes none");
     // (A checkpoint's period is --every's only: the file's output.every sets the frames'.)
-    note(spec.output.every != defaultOutput.every && !o.every, "output.every", "frames (output.directory or --out)",
-         "this run writes none");
+    if (!o.every)
+      noteKey(spec.output.every != defaultOutput.every, "output.every", "frames (output.directory or --out)",
+              "this run writes none");
   }
   return unused;
 }

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <set>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -126,6 +127,19 @@ template void requireScalarRange<double>(const SimulationOptions&,
 std::string bodiesText(const SceneSpec& scene) {
   return std::to_string(scene.bodies.size()) + (scene.bodies.size() == 1 ? " body" : " bodies") +
          (scene.bodies.empty() ? std::string() : std::string(", the first a ") + bodyKindName(scene.bodies[0].kind));
+}
+
+/// Every key of every object in `j`, as field paths (the reader's names: "a.b", "a[0].b").
+void collectKeys(const Json& j, const std::string& field, std::set<std::string>& keys) {
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      const std::string f = Reader::join(field, it.key());
+      keys.insert(f);
+      collectKeys(it.value(), f, keys);
+    }
+  } else if (j.is_array()) {
+    for (size_t k = 0; k < j.size(); ++k) collectKeys(j[k], field + "[" + std::to_string(k) + "]", keys);
+  }
 }
 
 }  // namespace io_detail
@@ -248,6 +262,7 @@ SceneSpec parseScene(const std::string& text, const std::string& source, const s
     scene.output.format = r.choice(j, "output", "format", "obj", {"obj", "ply", "cache", "gltf"});
     scene.output.every = r.integer(j, "output", "every", 1, 1, std::numeric_limits<std::int64_t>::max());
   }
+  collectKeys(root, "", scene.givenKeys);
   return scene;
 }
 

@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -96,6 +97,11 @@ struct SceneSpec {
   std::int64_t steps = 0;  // > 0: run this many steps
   double duration = 0;     // otherwise: ceil(duration / dt) steps (one of the two is required)
   OutputSpec output;
+  /// The keys a scene file wrote, as field paths ("integration.rtol",
+  /// "bodies[0].materials.bend"), whatever their values; empty for a built-in scene or a
+  /// SceneSpec filled in C++. `weft run` names the ones its run does not use, so that a
+  /// setting written into the file is never silently left out, even at its default value.
+  std::set<std::string> givenKeys;
 };
 
 /// Steps the scene asks for (steps, or duration / dt rounded up).
