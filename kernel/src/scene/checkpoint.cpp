@@ -15,6 +15,10 @@
 //   "SELF" the self-collision candidates (SelfCollider::saveCarry), when self-collision is on
 //   "END "
 //   checksum                         u64, FNV-1a of every byte before it
+#if defined(__unix__) || defined(__APPLE__)
+#include <unistd.h>
+#endif
+
 #include <cerrno>
 #include <cmath>
 #include <cstddef>
@@ -222,13 +226,27 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
   }
 }
 
+namespace {
+bool syncToDisk(std::FILE* file) {
+#if defined(__unix__) || defined(__APPLE__)
+  return ::fsync(::fileno(file)) == 0;
+#else
+  (void)file;
+  return true;
+#endif
+}
+}  // namespace
+
 template <class S>
 void Simulation<S>::save(const std::string& path) const {
   const std::string bytes = checkpoint();
   const std::string temporary = path + ".tmp";
   std::FILE* file = std::fopen(temporary.c_str(), "wb");
   if (file == nullptr) fileError(path, "cannot write " + temporary + ": " + std::strerror(errno));
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), file) == bytes.size() && std::fflush(file) == 0;
+  // On the disk before the rename: otherwise a power loss can leave the new name on an empty
+  // file and the previous checkpoint gone.
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), file) == bytes.size() && std::fflush(file) == 0 &&
+                       syncToDisk(file);
   const int error = written ? 0 : errno;
   if (std::fclose(file) != 0 || !written) {
     std::remove(temporary.c_str());

@@ -171,8 +171,8 @@ class Simulation {
   /// (Verlet's acceleration, rk45's slope and proposed substep, implicit Euler's warm
   /// start), the rigid bodies with their warm-start and witness caches, the kinematic pins'
   /// origins and the statistics. The file is binary, versioned and checksummed, written to
-  /// `path`.tmp and renamed into place, so an interrupted save leaves the previous file
-  /// whole. load() reads it into a Simulation built like the one that saved it (the same
+  /// `path`.tmp, flushed to the disk (fsync) and renamed into place, so an interrupted save,
+  /// or a machine that loses power just after it, leaves the previous file whole. load() reads it into a Simulation built like the one that saved it (the same
   /// model, options and initial state): its steps then give bitwise the states the saved one
   /// would have reached, for any thread count. (The obstacles' and self-collision's caches
   /// only save work: they are rebuilt, and change no result.) A file of another format or
