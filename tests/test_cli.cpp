@@ -334,6 +334,31 @@ TEST(Cli, AStateThatIsNotFiniteWithTheCheckOffIsNotOk) {
   // A run that stays finite says so.
   const nlohmann::json fine = runJson("run rope --size 8 --steps 3");
   EXPECT_EQ(fine["state_finite"], true);
+  // With frames or checkpoints, the run stops at the first one that would hold the state
+  // that is not finite, or that its format cannot hold: every frame written is finite (a
+  // glTF file refuses NaN, an OBJ file with "nan" in it breaks its readers), the frames
+  // before are kept, in every format, and the run still ends with its summary, not "ok".
+  for (const char* format : {"obj", "ply", "gltf", "cache"}) {
+    SCOPED_TRACE(format);
+    const std::string dir = ::testing::TempDir() + "weft_cli_unchecked_frames";
+    std::filesystem::remove_all(dir);
+    const CliRun framed = weft("run " + path + " --out " + dir + " --format " + format + " --every 10 --json", false);
+    EXPECT_EQ(framed.exitCode, 3) << framed.out;
+    const nlohmann::json fj = nlohmann::json::parse(framed.out, nullptr, false);
+    ASSERT_TRUE(fj.is_object()) << framed.out;
+    // (glTF frames are float: a coordinate past its range stops the run a frame earlier.)
+    EXPECT_EQ(fj["status"], std::string(format) == "gltf" ? "frame_unwritable" : "not_finite") << fj["status_message"];
+    EXPECT_LT(fj["steps"].get<int>(), 400);
+    EXPECT_EQ(fj["steps"].get<int>() % 10, 0);
+    EXPECT_GE(fj["frames_written"].get<int>(), 1);
+    for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+      std::ifstream in(entry.path(), std::ios::binary);
+      const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      EXPECT_EQ(bytes.find("nan"), std::string::npos) << entry.path();
+      EXPECT_EQ(bytes.find("inf"), std::string::npos) << entry.path();
+    }
+    std::filesystem::remove_all(dir);
+  }
   std::filesystem::remove(path);
 }
 

@@ -167,6 +167,23 @@ TEST(Render, TheScenesOutputSectionIsNamedAsNotUsed) {
   std::filesystem::remove_all(dir);
 }
 
+// With the stability check off nothing stops a state that overflows; render must not draw
+// it as blank pictures and end "ok" (weft run says not_finite for the same file).
+TEST(Render, AStateThatIsNotFiniteEndsThePicturesAndIsNotOk) {
+  const std::string dir = freshDirectory("not_finite");
+  std::filesystem::create_directories(dir);
+  const std::string file = dir + "/overflow.json";
+  std::ofstream(file) << R"({"name": "overflow", "dt": 2e-4, "steps": 3, "gravity": [0, -1e300, 0],
+    "stability": {"enabled": false},
+    "bodies": [{"type": "cloth_grid", "width": 12, "height": 12, "pins": [0, 11]}]})";
+  const CliRun run = render("'" + file + "' --out '" + dir + "/pictures' --every 1 --size 64x48");
+  EXPECT_EQ(run.exitCode, 3) << run.out << run.err;
+  EXPECT_NE(run.out.find("not finite"), std::string::npos) << run.out;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/pictures/frame_000000.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/pictures/frame_000001.png"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(RenderCamera, FramingKeepsEveryCornerInsideTheMargin) {
   weftrender::Bounds box;
   box.add(Eigen::Vector3f(-1.f, 0.f, -0.2f));

@@ -248,6 +248,33 @@ TYPED_TEST(SimulationTest, EveryIntegratorFailsCleanlyAtAHugeStep) {
   }
 }
 
+// Implicit Euler past the precision's range: its right-hand side is not a number, and its
+// CG, which stops when |r| <= tol |b|, would stop at once and leave the particles where
+// they were, a step reported fine. It must fail as non-finite, as the explicit methods do,
+// (or as overstretched, where a length overflows first) with every preconditioner, the same
+// on 1 and 2 threads.
+TYPED_TEST(SimulationTest, AnImplicitSolveOfNumbersPastTheRangeFails) {
+  using S = TypeParam;
+  const double dt = std::is_same_v<S, float> ? 1e19 : 1e100;
+  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Multigrid,
+                                 Preconditioner::Auto}) {
+    std::uint64_t hash[2] = {0, 0};
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE(std::string(preconditionerName(p)) + ", " + std::to_string(threads) + " thread(s)");
+      ModelAndState<S> flag = makeFlag<S>(12);
+      SimulationOptions options = flagOptions(IntegratorKind::ImplicitEuler, ForceStrategy::Auto, threads, dt);
+      options.integration.preconditioner = p;
+      Simulation<S> sim(std::move(flag), options);
+      const State<S> before = sim.state();
+      const StepStatus failure = sim.step();
+      ASSERT_FALSE(failure.ok()) << "the step past the range was taken for a good one";
+      expectFailureHandled(sim, failure, before);  // non-finite or overstretched, and where
+      hash[threads - 1] = stateHash(sim.state());
+    }
+    EXPECT_EQ(hash[0], hash[1]);
+  }
+}
+
 TYPED_TEST(SimulationTest, FailureReportIsTheSameForAnyThreadCount) {
   using S = TypeParam;
   // Several blocks in both checks (5184 particles, ~30 000 springs): the report names the

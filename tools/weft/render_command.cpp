@@ -71,12 +71,16 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
   std::vector<weftrender::SceneSnapshot> snapshots;
   snapshots.push_back(drawer.snapshot(sim));
   weft::StepStatus status = sim.status();
+  // With the stability check off nothing stops a state that overflowed: the pictures stop at
+  // the last finite one, and the run does not end "ok" (as weft run's does not).
+  bool finite = sim.stateFinite();
   const auto simulateStart = Clock::now();
-  while (sim.stepCount() < steps && status.ok()) {
+  while (sim.stepCount() < steps && status.ok() && finite) {
     const std::int64_t boundary = std::min(steps, (sim.stepCount() / every + 1) * every);
     while (sim.stepCount() < boundary && (status = sim.step()).ok()) {
     }
-    if (status.ok()) snapshots.push_back(drawer.snapshot(sim));
+    finite = sim.stateFinite();
+    if (status.ok() && finite) snapshots.push_back(drawer.snapshot(sim));
   }
   const double simulateSeconds = seconds(simulateStart);
 
@@ -107,8 +111,12 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
       << 1000 * drawSeconds / static_cast<double>(snapshots.size()) << " ms per picture, " << o.supersample << "x"
       << o.supersample << " supersampled, " << context.renderer() << "), " << seconds(start) << " s in all\n";
   if (!status.ok()) out << "  status       " << status.message() << " (pictures up to the last good step)\n";
+  if (status.ok() && !finite)
+    out << "  status       not finite: the state is not finite after step " << sim.stepCount()
+        << " (with the stability check off, stability.enabled = false, nothing stopped the run; pictures up to the "
+           "last finite state)\n";
   std::cout << out.str();
-  return status.ok() ? 0 : 3;
+  return status.ok() && finite ? 0 : 3;
 }
 
 }  // namespace

@@ -59,13 +59,6 @@ std::string gib(double bytes) {
   return text;
 }
 
-/// Whether every body's position, orientation and velocities are finite numbers.
-bool rigidFinite(const weft::RigidState& s) {
-  for (size_t b = 0; b < s.x.size(); ++b)
-    if (!(s.x[b].allFinite() && s.q[b].coeffs().allFinite() && s.v[b].allFinite() && s.w[b].allFinite())) return false;
-  return std::isfinite(s.time);
-}
-
 std::string hex(std::uint64_t h) {
   char buffer[19];
   std::snprintf(buffer, sizeof buffer, "0x%016llx", static_cast<unsigned long long>(h));
@@ -146,11 +139,17 @@ class FrameSink {
     }
   }
 
-  void write(const weft::State<S>& state) {
+  /// Writes the state's frame; returns why not when the format cannot hold it (a glTF frame
+  /// is float: a coordinate past float's range), leaving the frames before it as they were.
+  std::string write(const weft::State<S>& state) {
     if (cache_) {
       cache_->append(state);
     } else if (gltf_) {
-      gltf_->append(state);
+      try {
+        gltf_->append(state);
+      } catch (const std::invalid_argument& e) {  // (the writer checks every value before it writes)
+        return e.what();
+      }
     } else {
       const std::string path = (std::filesystem::path(dir_) / frameFileName(written_, format_)).string();
       if (format_ == "ply")
@@ -159,6 +158,7 @@ class FrameSink {
         weft::writeObj(path, state.x, topology_);
     }
     ++written_;
+    return {};
   }
   void close() {
     if (cache_) cache_->close();
@@ -739,6 +739,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   weft::StepStatus status = sim.status();
   double wall = 0;
   int interrupted = 0;
+  std::string unwritable;  // why the frame of the state the run stopped at could not be written
   {
     SignalScope signals;
     gSignal = 0;
@@ -749,7 +750,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       }
       wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (status.ok() && periodic && sim.stepCount() % every == 0) {
-        if (frames) frames->write(sim.state());
+        // With the stability check off nothing stops a state that overflowed: the run stops
+        // at the first frame or checkpoint that would hold it (neither a frame format nor a
+        // checkpoint holds a NaN that means anything), and ends not_finite.
+        if (!sim.stateFinite()) break;
+        if (frames) {
+          unwritable = frames->write(sim.state());
+          if (!unwritable.empty()) break;
+        }
         if (o.checkpoint && o.every) sim.save(*o.checkpoint);
       }
       progress.update(sim.stepCount());
@@ -760,7 +768,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (frames) frames->close();
     // The last checkpoint: at the end, or where the signal stopped the run (not after a
     // failed step: resuming it would only fail again).
-    if (o.checkpoint && status.ok()) sim.save(*o.checkpoint);
+    if (o.checkpoint && status.ok() && sim.stateFinite() && unwritable.empty()) sim.save(*o.checkpoint);
   }
 
   const weft::Model<S>& model = sim.model();
@@ -777,9 +785,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const weft::RigidWorld* rigid = sim.rigidWorld();
   // With the stability check off (stability.enabled = false) nothing stops a run whose state
   // became NaN or infinite: such a run does not end "ok".
-  const bool finite = state.x.allFinite() && state.v.allFinite() && (!rigid || rigidFinite(rigid->state()));
+  const bool finite = sim.stateFinite();
   const std::string notFinite =
-      "the state is not finite (with the stability check off, stability.enabled = false, nothing stopped the run)";
+      "the state is not finite after step " + std::to_string(sim.stepCount()) +
+      " (with the stability check off, stability.enabled = false, nothing stopped the run" +
+      (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string()) + ")";
+  const std::string stoppedUnwritable =
+      "stopped after step " + std::to_string(sim.stepCount()) + ": its frame cannot be written (" + unwritable +
+      "); the frames before it are written";
   // With rigid bodies the hash covers them too (equal for any thread count, like the particles').
   const std::string hash =
       hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
@@ -839,6 +852,10 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (status.ok() && !interrupted && !finite) {
       j["status"] = "not_finite";
       j["status_message"] = notFinite;
+    }
+    if (status.ok() && !interrupted && finite && !unwritable.empty()) {
+      j["status"] = "frame_unwritable";
+      j["status_message"] = stoppedUnwritable;
     }
     j["state_finite"] = finite;
     if (o.checkpoint) j["checkpoint"] = *o.checkpoint;
@@ -980,8 +997,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
                               std::to_string(done) + " of " + std::to_string(steps)
             : !status.ok() ? status.message()
-            : finite       ? std::string("ok")
-                           : notFinite)
+            : !finite              ? notFinite
+            : !unwritable.empty()  ? stoppedUnwritable
+                                   : std::string("ok"))
         << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)
@@ -995,7 +1013,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     std::cout << out.str();
   }
   if (interrupted) return 128 + interrupted;  // the shell's convention: 130 for SIGINT, 143 for SIGTERM
-  return status.ok() && finite ? 0 : 3;
+  return status.ok() && finite && unwritable.empty() ? 0 : 3;
 }
 
 }  // namespace

@@ -67,6 +67,9 @@ RunResult soakRun(const weft::SceneSpec& spec, std::int64_t steps, int threads) 
   r.steps = sim.stepCount();
   r.simulated = sim.state().time;
   if (!status.ok()) r.status = std::string(weft::stepCodeName(status.code)) + ": " + status.message();
+  // (With the stability check off nothing stops a state that overflowed: not "ok" either.)
+  else if (!sim.stateFinite())
+    r.status = "not_finite: the state is not finite (with the stability check off, nothing stopped the run)";
   const weft::RigidWorld* rigid = sim.rigidWorld();
   r.hash = rigid ? weft::stateHash(sim.state()) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(sim.state());
   return r;

@@ -117,8 +117,10 @@ class PaneOf final : public Pane {
     r.time = sim_->state().time;
     r.energy = weft::energy(sim_->model(), sim_->state(), sim_->options().gravity).total();
     if (const weft::RigidWorld* rigid = sim_->rigidWorld()) r.energy += rigid->energy();
-    r.ok = status_.ok();
-    r.status = status_.ok() ? "stable" : status_.message();
+    // (With the stability check off nothing stops a state that overflowed.)
+    const bool finite = sim_->stateFinite();
+    r.ok = status_.ok() && finite;
+    r.status = !status_.ok() ? status_.message() : finite ? "stable" : "the state is not finite (stability check off)";
     return r;
   }
   Carry carry() const override {

@@ -177,7 +177,12 @@ class ImplicitEuler final : public Integrator<S> {
 
     Index iterations = 0;
     double beta = 0;
-    while (rNorm > target && bNorm > 0) {
+    // A right-hand side, residual or product that is not a number (forces or a Jacobian past
+    // the precision's range) would stop the loop below at once and leave dv as it was: a
+    // step that looks fine and is not. Such a solve gives dv = NaN, which the step's
+    // stability check reports as non-finite, as it does for the explicit methods.
+    bool finite = std::isfinite(bNorm) && std::isfinite(rNorm);
+    while (finite && rNorm > target && bNorm > 0) {
       if (iterations == options_.maxLinearIterations) {
         ++work.linearUnconverged;
         break;
@@ -216,7 +221,10 @@ class ImplicitEuler final : public Integrator<S> {
       };
       jacobian_.systemProduct(p_, makeSink<S>(applied), exec);
       const double pq = sumPartials(partialA_);
-      if (!(pq > 0)) break;  // A is SPD on the free subspace: only exhaustion or NaN gets here
+      if (!(pq > 0)) {  // A is SPD on the free subspace: only exhaustion or NaN gets here
+        finite = !std::isnan(pq);
+        break;
+      }
       const S alpha = static_cast<S>(rz / pq);
       // dv += alpha p, r -= alpha q; new rz and |r|^2.
       exec.parallelFor(n, kBlock, [&](Index b, Index e) {
@@ -232,7 +240,12 @@ class ImplicitEuler final : public Integrator<S> {
       beta = rzNew / rz;
       rz = rzNew;
       ++iterations;
+      finite = std::isfinite(rNorm);
     }
+    if (!finite)
+      exec.parallelFor(n, kBlock, [&](Index b, Index e) {
+        for (int c = 0; c < 3; ++c) rows(dv_, c, b, e - b).setConstant(std::numeric_limits<S>::quiet_NaN());
+      });
     work.linearIterations += iterations;
     work.linearResidual = bNorm > 0 ? rNorm / bNorm : 0.0;
     work.multigridSolves += multigrid ? 1 : 0;
@@ -275,7 +288,7 @@ class ImplicitEuler final : public Integrator<S> {
         rows(x1, c, b, e - b) = rows(x0, c, b, e - b) + h * rows(v1, c, b, e - b);
       }
     });
-    warm_ = true;
+    warm_ = finite;  // (a NaN warm start would poison the next solve)
     return work;
   }
 

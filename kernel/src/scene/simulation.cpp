@@ -462,6 +462,16 @@ StepStatus Simulation<S>::run(Index steps) {
   return status_;
 }
 
+template <class S>
+bool Simulation<S>::stateFinite() const {
+  if (!(state_.x.allFinite() && state_.v.allFinite() && std::isfinite(state_.time))) return false;
+  if (!rigid_) return true;
+  const RigidState& r = rigid_->state();
+  for (size_t b = 0; b < r.x.size(); ++b)
+    if (!(r.x[b].allFinite() && r.q[b].coeffs().allFinite() && r.v[b].allFinite() && r.w[b].allFinite())) return false;
+  return std::isfinite(r.time);
+}
+
 template class Simulation<float>;
 template class Simulation<double>;
 

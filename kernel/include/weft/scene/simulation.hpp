@@ -107,6 +107,11 @@ class Simulation {
 
   const Model<S>& model() const { return *model_; }
   const State<S>& state() const { return state_; }
+  /// Whether every particle's position and velocity, every rigid body's position,
+  /// orientation and velocities and the time are finite numbers. With the stability check on
+  /// a step never leaves them otherwise; with it off (StabilityOptions::enabled = false)
+  /// nothing stops a state that overflowed, and this is how a caller tells.
+  bool stateFinite() const;
   /// Replaces the state (same particle count) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
