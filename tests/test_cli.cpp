@@ -642,6 +642,23 @@ TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
   std::filesystem::remove_all(dir);
 }
 
+// Self-collision cannot undo an intersection a cloth starts with: the run says so before it
+// starts, and the summary counts the pairs at the start beside those at the end.
+TEST(Cli, ClothThatStartsIntersectingIsNamed) {
+  const std::string path = ::testing::TempDir() + "weft_cli_crossing.json";
+  std::ofstream(path) << R"({"name": "crossing", "dt": 2e-4, "steps": 2, "self_collision": {}, "bodies": [
+    {"type": "cloth_grid", "width": 8, "height": 8, "origin": [-0.5, 0.5, -0.5]},
+    {"type": "cloth_grid", "width": 8, "height": 8, "origin": [0, 0.5, -0.7071],
+     "row_axis": [0.7071, 0, 0.7071], "column_axis": [-0.7071, 0, 0.7071]}]})";
+  const CliRun r = weft("run " + path, true);
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_NE(r.out.find("weft run: note: the cloth starts with "), std::string::npos) << r.out;
+  const nlohmann::json j = runJson("run " + path);
+  EXPECT_GT(j["intersecting_pairs_at_start"].get<int>(), 0);
+  EXPECT_EQ(runJson("run two-cloths --steps 1")["intersecting_pairs_at_start"], 0);
+  std::filesystem::remove(path);
+}
+
 // weft's own example files use every setting they write: a run of each names none (a key
 // an example writes for nothing would teach users to write it too).
 TEST(Cli, EveryExampleFileUsesEverySettingItWrites) {
@@ -866,8 +883,12 @@ INSTANTIATE_TEST_SUITE_P(
         BadOption{"flag --integrator foo", "--integrator", "foo"}, BadOption{"moon", "scene", "moon"},
         BadOption{"flag --dt 0", "--dt", "0"}, BadOption{"flag --dt -1", "--dt", "-1"},
         BadOption{"flag --dt nan", "--dt", "nan"}, BadOption{"flag --dt 1e-3x", "--dt", "1e-3x"},
-        BadOption{"flag --size 1", "--size", "1"}, BadOption{"flag --steps abc", "--steps", "abc"},
-        BadOption{"flag --precision half", "--precision", "half"}, BadOption{"flag --threads -1", "--threads", "-1"},
+        BadOption{"flag --dt 1e-400", "--dt", "1e-400' is too small"},
+        BadOption{"flag --dt 1e400", "--dt", "1e400' is too large"}, BadOption{"flag --dt 1e-320", "dt", "1e-320"},
+        BadOption{"flag --resume /", "checkpoint '/'", "is a directory"},
+        BadOption{"flag --integrator projective --dt 1e160", "dt", "1e+160"}, BadOption{"flag --size 1", "--size", "1"},
+        BadOption{"flag --steps abc", "--steps", "abc"}, BadOption{"flag --precision half", "--precision", "half"},
+        BadOption{"flag --threads -1", "--threads", "-1"},
         BadOption{"flag --strategy scatter", "--strategy", "scatter"},
         BadOption{"flag --integrator rk45 --rtol -1", "--rtol", "-1"},
         BadOption{"flag --integrator rk45 --rtol nan", "--rtol", "nan"},

@@ -256,8 +256,8 @@ TYPED_TEST(SimulationTest, EveryIntegratorFailsCleanlyAtAHugeStep) {
 TYPED_TEST(SimulationTest, AnImplicitSolveOfNumbersPastTheRangeFails) {
   using S = TypeParam;
   const double dt = std::is_same_v<S, float> ? 1e19 : 1e100;
-  for (const Preconditioner p : {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Multigrid,
-                                 Preconditioner::Auto}) {
+  for (const Preconditioner p :
+       {Preconditioner::Jacobi, Preconditioner::BlockJacobi, Preconditioner::Multigrid, Preconditioner::Auto}) {
     std::uint64_t hash[2] = {0, 0};
     for (const int threads : {1, 2}) {
       SCOPED_TRACE(std::string(preconditionerName(p)) + ", " + std::to_string(threads) + " thread(s)");

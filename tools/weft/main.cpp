@@ -2,6 +2,8 @@
 // exits non-zero with a message naming the option and the value.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
@@ -25,14 +27,16 @@ namespace {
 CLI::Validator finiteNumber(bool allowZero) {
   return CLI::Validator(
       [allowZero](std::string& text) -> std::string {
-        double value = 0;
-        try {
-          size_t used = 0;
-          value = std::stod(text, &used);
-          if (used != text.size()) return "'" + text + "' is not a number";
-        } catch (const std::exception&) {
+        // (strtod, not stod: stod throws for a number it can read but not hold, and the
+        // message must say which of the two it is.)
+        const char* begin = text.c_str();
+        char* end = nullptr;
+        errno = 0;
+        const double value = std::strtod(begin, &end);
+        if (text.empty() || end != begin + text.size() || std::isspace(static_cast<unsigned char>(text[0])))
           return "'" + text + "' is not a number";
-        }
+        if (errno == ERANGE && value == 0) return "'" + text + "' is too small for a double and would be read as 0";
+        if (errno == ERANGE && std::isinf(value)) return "'" + text + "' is too large for a double";
         if (!(std::isfinite(value) && (allowZero ? value >= 0 : value > 0)))
           return std::string("must be a finite number ") + (allowZero ? ">= 0" : "> 0") + ", got " + text;
         return {};

@@ -720,6 +720,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     frames.emplace(output, sim.model(), spec.name, steps);
     if (o.resume) checkResumedFrames(output, sim.stepCount());
   }
+  // Self-collision keeps cloth from passing through itself; it cannot undo an intersection
+  // the cloth starts with (its failsafe then runs on it chunk after chunk): said before the run.
+  const std::int64_t intersectingAtStart =
+      sim.options().selfCollision.enabled && sim.model().triangleCount() > 1 ? sim.selfIntersectionCount() : 0;
+  if (intersectingAtStart > 0)
+    std::cerr << "weft run: note: the cloth starts with " << intersectingAtStart
+              << " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
+                 "cannot undo an intersection it starts with (move the cloths apart)\n";
   // A first checkpoint before any step: a path that cannot be written fails now, not after
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);
@@ -790,9 +798,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       "the state is not finite after step " + std::to_string(sim.stepCount()) +
       " (with the stability check off, stability.enabled = false, nothing stopped the run" +
       (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string()) + ")";
-  const std::string stoppedUnwritable =
-      "stopped after step " + std::to_string(sim.stepCount()) + ": its frame cannot be written (" + unwritable +
-      "); the frames before it are written";
+  const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
+                                        ": its frame cannot be written (" + unwritable +
+                                        "); the frames before it are written";
   // With rigid bodies the hash covers them too (equal for any thread count, like the particles').
   const std::string hash =
       hex(rigid ? weft::stateHash(state) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(state));
@@ -887,6 +895,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["intersecting_pairs"] = intersecting;
     if (const weft::SelfCollisionOptions& self = sim.options().selfCollision; self.enabled) {
       const weft::SelfCollisionStats& t = sim.totalSelfCollision();
+      j["intersecting_pairs_at_start"] = intersectingAtStart;
       j["self_contacts"] = t.contacts;
       j["self_collision"] = {{"thickness", self.thickness},
                              {"cull_flat_regions", self.cullFlatRegions},
@@ -976,6 +985,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     }
     if (model.triangleCount() > 1) {
       out << "  cloth        " << intersecting << " pairs of triangles intersecting at the end";
+      if (intersectingAtStart > 0) out << " (" << intersectingAtStart << " at the start)";
       if (sim.options().selfCollision.enabled) {
         const weft::SelfCollisionStats& t = sim.totalSelfCollision();
         out << "; self-collision: " << t.contacts << " contacts (" << t.vertexTriangle << " vertex-triangle), "
@@ -996,10 +1006,10 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     out << "  status       "
         << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
                               std::to_string(done) + " of " + std::to_string(steps)
-            : !status.ok() ? status.message()
-            : !finite              ? notFinite
-            : !unwritable.empty()  ? stoppedUnwritable
-                                   : std::string("ok"))
+            : !status.ok()        ? status.message()
+            : !finite             ? notFinite
+            : !unwritable.empty() ? stoppedUnwritable
+                                  : std::string("ok"))
         << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)

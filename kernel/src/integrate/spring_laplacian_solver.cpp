@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.hpp"
+
 namespace weft::detail {
 
 namespace {
@@ -251,8 +253,9 @@ bool SpringLaplacianSolver<S>::prepare(double h, double drag) {
     permuted.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(permutation);
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(permuted);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0).all())
-      throw std::runtime_error(std::string(what_) +
-                               " is not positive definite (a particle of zero mass that is not pinned?)");
+      throw std::runtime_error(std::string(what_) + " at dt = " + detail::number(h) +
+                               " s is not positive definite (its mass term m / dt^2 vanishes beside the springs' at "
+                               "so long a step, or a particle of zero mass is not pinned)");
     if (narrow_)
       compressColumns(ldlt.matrixL().nestedExpression(), f.lower, f.lower.narrow);
     else

@@ -24,11 +24,13 @@
 #include <cstddef>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 
 #include "collide/self_collider.hpp"
 #include "core/text.hpp"
@@ -245,8 +247,8 @@ void Simulation<S>::save(const std::string& path) const {
   if (file == nullptr) fileError(path, "cannot write " + temporary + ": " + std::strerror(errno));
   // On the disk before the rename: otherwise a power loss can leave the new name on an empty
   // file and the previous checkpoint gone.
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), file) == bytes.size() && std::fflush(file) == 0 &&
-                       syncToDisk(file);
+  const bool written =
+      std::fwrite(bytes.data(), 1, bytes.size(), file) == bytes.size() && std::fflush(file) == 0 && syncToDisk(file);
   const int error = written ? 0 : errno;
   if (std::fclose(file) != 0 || !written) {
     std::remove(temporary.c_str());
@@ -261,6 +263,8 @@ void Simulation<S>::save(const std::string& path) const {
 
 template <class S>
 void Simulation<S>::load(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) fileError(path, "is a directory, not a checkpoint file");
   std::ifstream in(path, std::ios::binary);
   if (!in) fileError(path, std::string("cannot open: ") + std::strerror(errno));
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -173,18 +173,19 @@ class Simulation {
 
   /// Checkpoints. save() writes everything a later step depends on to `path`: the state and
   /// its time, the time step, the status, what the integrator carries from step to step
-  /// (Verlet's acceleration, rk45's slope and proposed substep, implicit Euler's warm
-  /// start), the rigid bodies with their warm-start and witness caches, the kinematic pins'
-  /// origins and the statistics. The file is binary, versioned and checksummed, written to
+  /// (Verlet's acceleration, rk45's slope and proposed substep, implicit Euler's warm start),
+  /// the rigid bodies with their warm-start and witness caches, the kinematic pins' origins
+  /// and the statistics. The file is binary, versioned and checksummed, written to
   /// `path`.tmp, flushed to the disk (fsync) and renamed into place, so an interrupted save,
-  /// or a machine that loses power just after it, leaves the previous file whole. load() reads it into a Simulation built like the one that saved it (the same
-  /// model, options and initial state): its steps then give bitwise the states the saved one
-  /// would have reached, for any thread count. (The obstacles' and self-collision's caches
-  /// only save work: they are rebuilt, and change no result.) A file of another format or
-  /// weft version, precision, model (a fingerprint of its masses, springs and triangles),
-  /// integrator or body count, or a damaged one (its checksum), is refused with a
-  /// std::runtime_error naming the file and what differs, and the Simulation is unchanged.
-  /// Effect timers (effectTimes) are not saved. Both allocate; step() still does not.
+  /// or a machine that loses power just after it, leaves the previous file whole. load()
+  /// reads it into a Simulation built like the one that saved it (the same model, options and
+  /// initial state): its steps then give bitwise the states the saved one would have reached,
+  /// for any thread count. (The obstacles' and self-collision's caches only save work: they
+  /// are rebuilt, and change no result.) A file of another format or weft version, precision,
+  /// model (a fingerprint of its masses, springs and triangles), integrator or body count, or
+  /// a damaged one (its checksum), is refused with a std::runtime_error naming the file and
+  /// what differs, and the Simulation is unchanged. Effect timers (effectTimes) are not
+  /// saved. Both allocate; step() still does not.
   void save(const std::string& path) const;
   void load(const std::string& path);
   /// The same in memory: a checkpoint's bytes, and restoring from them (`source` names them
