@@ -355,6 +355,17 @@ std::vector<IntegratorSetting> integratorSettings(const RunOptions& o, const wef
   return settings;
 }
 
+/// Whether a body has a box or hull piece: the narrow phase's pairs (a sphere's test is its own).
+bool hasHulls(const weft::RigidOptions& rigid) {
+  return std::any_of(rigid.bodies.begin(), rigid.bodies.end(), [](const weft::RigidBodyDesc& b) {
+    return std::any_of(b.shapes.begin(), b.shapes.end(),
+                       [](const weft::RigidShapeDesc& s) { return s.kind != weft::RigidShapeDesc::Kind::Sphere; });
+  });
+}
+std::string spheresOnly(const weft::SceneSpec& spec) {
+  return "the scene '" + spec.name + "' has spheres only (a sphere's test is its own)";
+}
+
 const char* const kFixedRk45 = "this run takes fixed rk45 steps (--fixed-step or integration.adaptive false)";
 
 /// An option given on the command line that this run would not read is refused, naming
@@ -397,11 +408,8 @@ void refuseInapplicableOptions(const RunOptions& o, const weft::SceneSpec& spec)
         "--time-of-impact rollback finds each pair's time of impact along its motion, and the "
         "scene '" +
         spec.name + "' sets rigid_bodies.continuous false: drop one of them");
-  const bool hulls = std::any_of(rigid.bodies.begin(), rigid.bodies.end(), [](const weft::RigidBodyDesc& b) {
-    return std::any_of(b.shapes.begin(), b.shapes.end(),
-                       [](const weft::RigidShapeDesc& s) { return s.kind != weft::RigidShapeDesc::Kind::Sphere; });
-  });
-  const std::string spheres = "the scene '" + spec.name + "' has spheres only (a sphere's test is its own)";
+  const bool hulls = hasHulls(rigid);
+  const std::string spheres = spheresOnly(spec);
   if (o.narrowPhase && !rigid.bodies.empty() && !hulls) refuse("--narrow-phase", "pairs of boxes and hulls", spheres);
   if (o.ofgFaces && !rigid.bodies.empty() && !hulls) refuse("--ofg-faces", "pairs of boxes and hulls", spheres);
   if (o.ofgFaces && rigid.narrowPhase.method != weft::NarrowPhaseMethod::Ofg)
@@ -473,13 +481,9 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
               rollback, speculative);
       noteKey(rigid.maxHalvings != defaultRigid.maxHalvings, "rigid_bodies.max_halvings", rollback, speculative);
     }
-    const bool hulls = std::any_of(rigid.bodies.begin(), rigid.bodies.end(), [](const weft::RigidBodyDesc& b) {
-      return std::any_of(b.shapes.begin(), b.shapes.end(),
-                         [](const weft::RigidShapeDesc& s) { return s.kind != weft::RigidShapeDesc::Kind::Sphere; });
-    });
     const char* pairs = "pairs of boxes and hulls";
-    const std::string spheres = "the scene '" + spec.name + "' has spheres only (a sphere's test is its own)";
-    if (!hulls) {
+    const std::string spheres = spheresOnly(spec);
+    if (!hasHulls(rigid)) {
       noteKey(rigid.narrowPhase.method != weft::NarrowPhaseOptions{}.method, "rigid_bodies.narrow_phase", pairs,
               spheres);
       noteKey(rigid.narrowPhase.ofgFaces != weft::NarrowPhaseOptions{}.ofgFaces, "rigid_bodies.ofg_faces", pairs,
