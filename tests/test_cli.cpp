@@ -659,6 +659,22 @@ TEST(Cli, ClothThatStartsIntersectingIsNamed) {
   std::filesystem::remove(path);
 }
 
+// A particle that starts inside an obstacle is pushed out within a step, which can tear the
+// cloth around it: the run says so before it starts, and the summary has the depth.
+TEST(Cli, AParticleThatStartsInsideAnObstacleIsNamed) {
+  const std::string path = ::testing::TempDir() + "weft_cli_inside.json";
+  std::ofstream(path) << R"({"name": "inside", "dt": 2e-4, "steps": 2,
+    "bodies": [{"type": "cloth_grid", "width": 8, "height": 8, "origin": [-0.5, 0.5, -0.5]}],
+    "collision": {"obstacles": [{"type": "sphere", "center": [0, 0.5, 0], "radius": 0.3}]}})";
+  const CliRun r = weft("run " + path, true);
+  EXPECT_EQ(r.exitCode, 0) << r.out;
+  EXPECT_NE(r.out.find("weft run: note: a particle starts "), std::string::npos) << r.out;
+  EXPECT_GT(runJson("run " + path)["max_penetration_at_start"].get<double>(), 0.005);
+  const CliRun drape = weft("run drape --size 8 --steps 1", true);
+  EXPECT_EQ(drape.out.find("note"), std::string::npos) << drape.out;
+  std::filesystem::remove(path);
+}
+
 // weft's own example files use every setting they write: a run of each names none (a key
 // an example writes for nothing would teach users to write it too).
 TEST(Cli, EveryExampleFileUsesEverySettingItWrites) {

@@ -728,6 +728,14 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // the cloth starts with (its failsafe then runs on it chunk after chunk): said before the run.
   const std::int64_t intersectingAtStart =
       sim.options().selfCollision.enabled && sim.model().triangleCount() > 1 ? sim.selfIntersectionCount() : 0;
+  // Likewise a particle that starts inside an obstacle (deeper than the thickness): the
+  // response pushes it out in one step and can tear the cloth around it.
+  const double penetrationAtStart = sim.contactSolver() ? sim.contactReport().maxPenetration : 0.0;
+  const double thickness = sim.options().collision.thickness;
+  if (penetrationAtStart > thickness)
+    std::cerr << "weft run: note: a particle starts " << penetrationAtStart - thickness
+              << " m inside an obstacle: the response pushes it out within a step and can tear the cloth around it "
+                 "(move the body or the obstacle)\n";
   if (intersectingAtStart > 0)
     std::cerr << "weft run: note: the cloth starts with " << intersectingAtStart
               << " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
@@ -893,6 +901,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["edge_contacts"] = sim.totalCollision().edgeContacts;
       j["corner_contacts"] = sim.totalCollision().cornerContacts;
       j["tunnelled"] = report.tunnelled;
+      j["max_penetration_at_start"] = penetrationAtStart;
     }
     // Cloth against cloth: pairs of triangles (sharing no particle) that intersect at the end
     // (the exact check, in every scene), and with self-collision what its pass did over the run.
