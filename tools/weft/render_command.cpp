@@ -20,6 +20,7 @@
 #include "png_image.hpp"
 #include "render_scene.hpp"
 #include "renderer.hpp"
+#include "unchecked_state.hpp"
 #include "weft/weft.hpp"
 #endif
 
@@ -112,9 +113,7 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
       << o.supersample << " supersampled, " << context.renderer() << "), " << seconds(start) << " s in all\n";
   if (!status.ok()) out << "  status       " << status.message() << " (pictures up to the last good step)\n";
   if (status.ok() && !finite)
-    out << "  status       not finite: the state is not finite after step " << sim.stepCount()
-        << " (with the stability check off, stability.enabled = false, nothing stopped the run; pictures up to the "
-           "last finite state)\n";
+    out << "  status       " << notFiniteMessage(sim.stepCount()) << "; pictures up to the last finite state\n";
   std::cout << out.str();
   return status.ok() && finite ? 0 : 3;
 }

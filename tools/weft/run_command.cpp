@@ -23,6 +23,7 @@
 
 #include "output_file.hpp"
 #include "process_memory.hpp"
+#include "unchecked_state.hpp"
 #include "weft/io/gltf.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
@@ -807,9 +808,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // became NaN or infinite: such a run does not end "ok".
   const bool finite = sim.stateFinite();
   const std::string notFinite =
-      "the state is not finite after step " + std::to_string(sim.stepCount()) +
-      " (with the stability check off, stability.enabled = false, nothing stopped the run" +
-      (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string()) + ")";
+      notFiniteMessage(sim.stepCount()) +
+      (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string());
   const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
                                         ": its frame cannot be written (" + unwritable +
                                         "); the frames before it are written";

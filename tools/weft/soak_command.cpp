@@ -11,6 +11,7 @@
 
 #include "output_file.hpp"
 #include "process_memory.hpp"
+#include "unchecked_state.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
@@ -69,7 +70,7 @@ RunResult soakRun(const weft::SceneSpec& spec, std::int64_t steps, int threads) 
   if (!status.ok()) r.status = std::string(weft::stepCodeName(status.code)) + ": " + status.message();
   // (With the stability check off nothing stops a state that overflowed: not "ok" either.)
   else if (!sim.stateFinite())
-    r.status = "not_finite: the state is not finite (with the stability check off, nothing stopped the run)";
+    r.status = "not_finite: " + notFiniteMessage(sim.stepCount());
   const weft::RigidWorld* rigid = sim.rigidWorld();
   r.hash = rigid ? weft::stateHash(sim.state()) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(sim.state());
   return r;

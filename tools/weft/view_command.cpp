@@ -22,6 +22,7 @@
 #include "output_file.hpp"
 #include "render_scene.hpp"
 #include "text_overlay.hpp"
+#include "unchecked_state.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 #endif
@@ -120,7 +121,7 @@ class PaneOf final : public Pane {
     // (With the stability check off nothing stops a state that overflowed.)
     const bool finite = sim_->stateFinite();
     r.ok = status_.ok() && finite;
-    r.status = !status_.ok() ? status_.message() : finite ? "stable" : "the state is not finite (stability check off)";
+    r.status = !status_.ok() ? status_.message() : finite ? "stable" : notFiniteMessage(sim_->stepCount());
     return r;
   }
   Carry carry() const override {
