@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "collide/self_collider.hpp"
+#include "support/sanitizers.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
@@ -510,6 +511,7 @@ Simulation<S> makeScene(const std::string& name, Index size, bool self, int thre
 // a spring past the limit, and the step fails (the state as it was) instead of reporting
 // ok with a spring eleven times its rest length.
 TEST(SelfCollision, AResponseThatOverstretchesFailsTheStep) {
+  WEFT_SKIP_UNDER_TSAN("it runs on one thread");
   SceneSpec spec = builtinSceneSpec("fold", 16);
   spec.simulation.integrator = IntegratorKind::Rk45;
   spec.simulation.dt = 10;
@@ -922,19 +924,17 @@ TEST(SelfCollisionCulling, LayersTheResponsePushesGatherOncePerChunk) {
 }
 
 TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInDouble) {
+  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
   for (const HardScene& s : kHardScenes) expectNeverIntersects<double>(s);
 }
 
 TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInFloat) {
-#if defined(__SANITIZE_THREAD__)
-  // The float pass runs the same parallel code as the double one, which ThreadSanitizer
-  // checks above; the Release and AddressSanitizer builds run this one too.
-  GTEST_SKIP() << "under ThreadSanitizer the double version covers the same threads";
-#endif
+  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
   for (const HardScene& s : kHardScenes) expectNeverIntersects<float>(s);
 }
 
 TEST(SelfCollisionScenes, WithoutSelfCollisionTheClothIntersects) {
+  WEFT_SKIP_UNDER_TSAN("a check that the scenes are hard; it runs no parallel pass the others do not");
   // The same scenes with the pass off: the check finds intersections, so the scenes are hard.
   int intersecting = 0;
   for (const HardScene& scene : kHardScenes) {
@@ -1000,6 +1000,7 @@ SmallOnLarge smallOnLarge(double drop, double upperThickness = 0, double across 
 }
 
 TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
+  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
   // The upper cloth 12 mm thick on the 4 mm lower one: the layers rest the mean apart, 8 mm
   // (with one thickness they rest 4 mm apart: RestingLayersNeitherJitterNorCreep).
   for (const double upper : {0.012}) {
@@ -1066,6 +1067,7 @@ Settled settle(SmallOnLarge& scene, double seconds) {
 }
 
 TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
+  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
   // A smaller cloth dropped 1 cm onto a larger one lying on a floor: after settling the
   // particles are slow and the upper cloth stays where it is.
   SmallOnLarge scene = smallOnLarge(0.01);
@@ -1083,6 +1085,7 @@ TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
 }
 
 TEST(SelfCollisionScenes, AClothDrapedOverAnothersBorderComesToRest) {
+  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
   // The upper cloth hangs 3.5 spacings over the lower one's border and drapes down to the
   // floor beside it. The lower cloth's border particles rest on the floor under the upper
   // cloth's weight: the response must not push them into the floor (the floor pushing them

@@ -13,6 +13,7 @@
 #include <random>
 #include <vector>
 
+#include "support/sanitizers.hpp"
 #include "weft/rigid/convex_hull.hpp"
 #include "weft/rigid/narrow_phase.hpp"
 
@@ -528,7 +529,9 @@ TEST(RigidNarrow, WitnessMatchesExactOverSmallMotions) {
   const double baseMargin = 0.01;
   std::vector<ConvexHull> shapes;
   for (int i = 0; i < 40; ++i) shapes.push_back(randomHull(rng));
-  for (int sequence = 0; sequence < 10000; ++sequence) {
+  // 10 000 sequences; a tenth under the sanitizers (the same code paths, 10-20x slower).
+  const int sequences = weft::test::kSanitized ? 1000 : 10000;
+  for (int sequence = 0; sequence < sequences; ++sequence) {
     const ConvexHull& a = shapes[sequence % shapes.size()];
     const ConvexHull& b = shapes[(sequence * 7 + 3) % shapes.size()];
     const Pose pa = makePose(randomRotation(rng), Vector3d::Zero());
@@ -676,8 +679,10 @@ TEST(RigidNarrow, OfgRecallOnRandomPairs) {
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<ConvexHull> shapes;
   for (int i = 0; i < 30; ++i) shapes.push_back(randomHull(rng));
+  // A quarter of the trials under the sanitizers (measured here, asserted nowhere).
+  const int trials = weft::test::kSanitized ? 150 : 600;
   std::vector<PairSample> coarse;
-  for (int trial = 0; trial < 600; ++trial) {
+  for (int trial = 0; trial < trials; ++trial) {
     const ConvexHull& a = shapes[trial % shapes.size()];
     const ConvexHull& b = shapes[(trial * 11 + 5) % shapes.size()];
     const Pose pa = makePose(randomRotation(rng), Vector3d::Zero());
@@ -690,7 +695,7 @@ TEST(RigidNarrow, OfgRecallOnRandomPairs) {
   const ConvexHull ball = makeConvexHull(ballPoints);
   const ConvexHull bar = makeBoxHull(Vector3d(2, 0.1, 0.1));
   std::vector<PairSample> fine;
-  for (int trial = 0; trial < 300; ++trial) {
+  for (int trial = 0; trial < trials / 2; ++trial) {
     const Pose pa = makePose(randomRotation(rng), Vector3d::Zero());
     fine.push_back(
         {&ball, &bar, pa, placeAt(ball, pa, bar, randomRotation(rng), randomUnit(rng), -0.05 + 0.1 * u(rng))});

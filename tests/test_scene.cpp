@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "support/cli_runner.hpp"
+#include "support/sanitizers.hpp"
 #include "support/test_support.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
@@ -317,6 +318,9 @@ TEST(SceneExamples, HangingClothFileStepsLikeTheBuiltinSceneOfSize33BitForBit) {
 }
 
 TEST(SceneExamples, CollisionScenesStepLikeTheBuiltinScenesBitForBit) {
+  WEFT_SKIP_UNDER_TSAN(
+      "a file against a built-in scene; Collide.BitwiseIdenticalForOneAndTwoThreads and "
+      "SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits run these passes on 1 and 2 threads");
   // drape-mesh imports tools/scenes/meshes/torus.obj from the file and the built-in scene
   // from the copy embedded in the library: the same bytes, so the same mesh. fast-ball runs
   // through its impact on the wall (step 36 at 100 m/s), fold (self-collision) until it has
@@ -387,6 +391,9 @@ TEST(SceneExamples, RigidBodyScenesStepLikeTheBuiltinScenesBitForBit) {
 class ClothAndBodyFiles : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(ClothAndBodyFiles, StepLikeTheBuiltinSceneBitForBit) {
+  WEFT_SKIP_UNDER_TSAN(
+      "a file against a built-in scene; Tablecloth.IsBitwiseTheSameOnOneAndTwoThreads and "
+      "ParticleCoupling.BitwiseTheSameOnOneAndTwoThreads run these passes on 1 and 2 threads");
   // Cloth and bodies: 500 steps (the tablecloth's pull has begun: supports and particle
   // contacts every step; the hammock's ball is falling towards the cloth).
   const SceneSpec file = readSceneFile(examplePath(GetParam()));

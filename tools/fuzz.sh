@@ -61,7 +61,8 @@ jobs="${WEFT_JOBS:-2}"
 dir=build-fuzz
 
 bash tools/setup.sh
-cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWEFT_FUZZ=ON \
+cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DWEFT_FUZZ=ON \
   -DWEFT_SANITIZE=address,undefined -DWEFT_BUILD_TESTS=OFF -DWEFT_BUILD_BENCH=OFF -DWEFT_BUILD_TOOLS=OFF >/dev/null
 cmake --build "$dir" -j"$jobs" --target fuzz_scene fuzz_mesh fuzz_frame_cache fuzz_checkpoint make_checkpoint_seeds
 

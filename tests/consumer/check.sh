@@ -1,19 +1,36 @@
 #!/usr/bin/env bash
 # Builds and runs tests/consumer against weft as a user would get it:
 #   bash tests/consumer/check.sh BUILD_DIR [--subdirectory]
+#   bash tests/consumer/check.sh --subdirectory-only
 # 1. `cmake --install BUILD_DIR` into a temporary prefix;
 # 2. find_package(weft) with only the kernel, assimp and nlohmann-json made unfindable;
 # 3. find_package(weft COMPONENTS io);
 # 4. the kernel program through pkg-config, no CMake, and every installed header compiled on
 #    its own (self-contained, reaching no internal header: those are not installed);
 # 5. with --subdirectory, add_subdirectory() of this source tree (compiles weft again).
+# --subdirectory-only runs step 5 alone (CI: the suite's Package.InstalledConsumersBuildAndRun
+# has run steps 1-4 on the Release build already).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 source_dir="$(cd "$here/../.." && pwd)"
-build="$(cd "$1" && pwd)"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 jobs="${WEFT_JOBS:-2}"
+
+add_subdirectory_check() {
+  echo "-- add_subdirectory(weft)"
+  cmake -S "$here" -B "$work/sub" -DWEFT_SOURCE="$source_dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$work/sub" -j"$jobs" >/dev/null
+  "$work/sub/consumer"
+  "$work/sub/consumer_io"
+}
+
+if [ "${1:-}" = "--subdirectory-only" ]; then
+  add_subdirectory_check
+  echo "-- consumers: ok"
+  exit 0
+fi
+build="$(cd "${1:?usage: check.sh BUILD_DIR [--subdirectory] | --subdirectory-only}" && pwd)"
 
 echo "-- install into $work/prefix"
 cmake --install "$build" --prefix "$work/prefix" >/dev/null
@@ -44,10 +61,6 @@ cflags="$(PKG_CONFIG_PATH="$libdir" pkg-config --cflags weft)"
     { echo "installed header $1 does not compile on its own" >&2; exit 255; }' _ {} "$cflags"
 
 if [ "${2:-}" = "--subdirectory" ]; then
-  echo "-- add_subdirectory(weft)"
-  cmake -S "$here" -B "$work/sub" -DWEFT_SOURCE="$source_dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$work/sub" -j"$jobs" >/dev/null
-  "$work/sub/consumer"
-  "$work/sub/consumer_io"
+  add_subdirectory_check
 fi
 echo "-- consumers: ok"
