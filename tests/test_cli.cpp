@@ -727,6 +727,16 @@ TEST(Cli, SoakRunsEachSceneOnBothThreadCountsAndChecksIt) {
   EXPECT_NE(far.out.find("| stack | double | 3 |"), std::string::npos) << far.out;
   EXPECT_EQ(weft("soak --seconds 0", true).exitCode, 2);
   EXPECT_EQ(weft("soak --scene no-such-scene", true).exitCode, 2);
+  // A thread count or a scene given twice would compare a run with itself: refused, naming it.
+  for (const char* twice : {"soak --seconds 0.01 --threads 1 --threads 1", "soak --seconds 0.01 --threads 2 1 2",
+                            "soak --seconds 0.01 --scene rope --scene rope", "study --quick --threads 1 1",
+                            "study --quick --scene rope --scene rope"}) {
+    const CliRun r = weft(twice, true);
+    EXPECT_EQ(r.exitCode, 2) << twice << "\n" << r.out;
+    const std::string what = std::string(twice).find("--scene") != std::string::npos ? "--scene rope" : "--threads ";
+    EXPECT_NE(r.out.find(what), std::string::npos) << twice << "\n" << r.out;
+    EXPECT_NE(r.out.find("is given twice; give each value once"), std::string::npos) << twice << "\n" << r.out;
+  }
   // A table file that cannot be written is refused before the first run (no row printed);
   // the check leaves no file behind where it could write.
   const std::string missing = ::testing::TempDir() + "weft_no_such_dir/table.md";

@@ -258,6 +258,19 @@ CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const 
       ->check(CLI::Range(0, 1024));
   return cmd;
 }
+
+/// Exits 2 naming `option` and the value when `values` holds one twice: study and soak run
+/// each thread count and scene of their lists once, and soak compares the thread counts'
+/// hashes, so a repeated count would compare a run with itself.
+template <class T>
+bool givenTwice(const CLI::App& command, const char* option, std::vector<T> values) {
+  std::sort(values.begin(), values.end());
+  const auto twice = std::adjacent_find(values.begin(), values.end());
+  if (twice == values.end()) return false;
+  std::cerr << "weft " << command.get_name() << ": " << option << " " << *twice
+            << " is given twice; give each value once\n";
+  return true;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -437,6 +450,12 @@ int main(int argc, char** argv) {
   if (cmd->parsed() && !cmd->remaining().empty()) return reportExtras(*cmd, cmd->remaining());
   if (renderCmd->parsed() && !renderCmd->remaining().empty()) return reportExtras(*renderCmd, renderCmd->remaining());
   if (viewCmd->parsed() && !viewCmd->remaining().empty()) return reportExtras(*viewCmd, viewCmd->remaining());
+  if (studyCmd->parsed() &&
+      (givenTwice(*studyCmd, "--threads", study.threads) || givenTwice(*studyCmd, "--scene", study.scenes)))
+    return 2;
+  if (soakCmd->parsed() &&
+      (givenTwice(*soakCmd, "--threads", soak.threads) || givenTwice(*soakCmd, "--scene", soak.scenes)))
+    return 2;
   try {
     if (studyCmd->parsed()) {
       const int code = weftcli::runStudy(study);
