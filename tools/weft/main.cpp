@@ -259,9 +259,9 @@ CLI::App* addRenderCommand(CLI::App& app, weftcli::RenderOptions& render, const 
   return cmd;
 }
 
-/// Exits 2 naming `option` and the value when `values` holds one twice: study and soak run
-/// each thread count and scene of their lists once, and soak compares the thread counts'
-/// hashes, so a repeated count would compare a run with itself.
+/// True, naming `option` and the value on stderr, when `values` holds one twice (the command
+/// then exits 2): study and soak run each thread count and scene of their lists once, and
+/// soak compares the thread counts' hashes, so a repeated count would compare a run with itself.
 template <class T>
 bool givenTwice(const CLI::App& command, const char* option, std::vector<T> values) {
   std::sort(values.begin(), values.end());
