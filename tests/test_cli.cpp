@@ -18,6 +18,7 @@
 #include <weft/io/scene.hpp>
 
 #include "support/cli_runner.hpp"
+#include "support/sanitizers.hpp"
 #include "support/test_support.hpp"
 
 #ifndef WEFT_CLI_PATH
@@ -1011,9 +1012,7 @@ TEST(Cli, MemoryIsAskedForBeforeItIsTaken) {
 }
 
 TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-  GTEST_SKIP() << "a sanitizer's shadow memory and quarantine are not the program's";
-#endif
+  if (weft::test::kSanitized) GTEST_SKIP() << "a sanitizer's shadow memory and quarantine are not the program's";
   std::vector<std::string> runs;
   for (const std::string& name : builtinSceneNames()) runs.push_back(name);
   runs.push_back("flag --size 256 --integrator implicit");  // the arrays dominate, not the process

@@ -540,11 +540,11 @@ const HardScene kHardScenes[] = {
 
 // Under a sanitizer (10-20x slower) the exact check runs after every 5th step: the
 // Release build checks every step, the sanitizers look for memory and threading errors.
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr Index kCheckEvery = 5;
-#else
-constexpr Index kCheckEvery = 1;
-#endif
+constexpr Index kCheckEvery = weft::test::kSanitized ? 5 : 1;
+
+// What the tests of the scenes below name when ThreadSanitizer skips them.
+constexpr const char* kSameBitsTest =
+    "SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads";
 
 template <class S>
 void expectNeverIntersects(const HardScene& scene) {
@@ -924,12 +924,12 @@ TEST(SelfCollisionCulling, LayersTheResponsePushesGatherOncePerChunk) {
 }
 
 TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInDouble) {
-  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   for (const HardScene& s : kHardScenes) expectNeverIntersects<double>(s);
 }
 
 TEST(SelfCollisionScenes, NothingIntersectsAfterAnyStepInFloat) {
-  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   for (const HardScene& s : kHardScenes) expectNeverIntersects<float>(s);
 }
 
@@ -1000,7 +1000,7 @@ SmallOnLarge smallOnLarge(double drop, double upperThickness = 0, double across 
 }
 
 TEST(SelfCollisionScenes, EachClothKeepsItsOwnThickness) {
-  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // The upper cloth 12 mm thick on the 4 mm lower one: the layers rest the mean apart, 8 mm
   // (with one thickness they rest 4 mm apart: RestingLayersNeitherJitterNorCreep).
   for (const double upper : {0.012}) {
@@ -1067,7 +1067,7 @@ Settled settle(SmallOnLarge& scene, double seconds) {
 }
 
 TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
-  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // A smaller cloth dropped 1 cm onto a larger one lying on a floor: after settling the
   // particles are slow and the upper cloth stays where it is.
   SmallOnLarge scene = smallOnLarge(0.01);
@@ -1085,7 +1085,7 @@ TEST(SelfCollisionScenes, RestingLayersNeitherJitterNorCreep) {
 }
 
 TEST(SelfCollisionScenes, AClothDrapedOverAnothersBorderComesToRest) {
-  WEFT_SKIP_UNDER_TSAN("SelfCollisionScenes.OneAndTwoThreadsGiveTheSameBits runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // The upper cloth hangs 3.5 spacings over the lower one's border and drapes down to the
   // floor beside it. The lower cloth's border particles rest on the floor under the upper
   // cloth's weight: the response must not push them into the floor (the floor pushing them

@@ -368,11 +368,7 @@ TYPED_TEST(ForceFieldTest, GridStencilAgreesOnEveryWidthOfAShearOnlyGrid) {
   // padding there and that slot held another family's force. Every width up to 160, over
   // several chunks, two threads. Under ThreadSanitizer every 7th width: the threads do the
   // same at every width, and the other builds check each one.
-#if defined(__SANITIZE_THREAD__)
-  constexpr Index kWidthStep = 7;
-#else
-  constexpr Index kWidthStep = 1;
-#endif
+  constexpr Index kWidthStep = weft::test::kThreadSanitizer ? 7 : 1;
   for (Index w = 2; w <= 160; w += kWidthStep) {
     SCOPED_TRACE(::testing::Message() << "width " << w);
     ClothGridSpec spec = flagSpec(8);

@@ -33,6 +33,7 @@
 #include <utility>
 #include <vector>
 
+#include "support/sanitizers.hpp"
 #include "support/test_support.hpp"
 #include "weft/effects/force_field.hpp"
 #include "weft/io/mesh_import.hpp"
@@ -797,11 +798,8 @@ std::string binaryStlGrid(int w, int h) {
 }
 
 TEST(AdversarialMesh, AMillionTrianglesAreReadCleanedAndBuilt) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-  const int w = 250, h = 200;  // 100 k triangles: the sanitizers are 10-20x slower
-#else
-  const int w = 1000, h = 500;  // a million triangles, a 50 MB file
-#endif
+  // A million triangles, a 50 MB file; 100 k under the sanitizers (10-20x slower).
+  const int w = weft::test::kSanitized ? 250 : 1000, h = weft::test::kSanitized ? 200 : 500;
   const std::string path = tempFile("million.stl", binaryStlGrid(w, h));
   MeshReport report;
   const TriangleMesh mesh = loadCleanMesh(path, {}, &report);

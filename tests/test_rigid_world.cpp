@@ -663,8 +663,12 @@ TableclothRun runTablecloth(double speed, double seconds, int threads, bool supp
   return run;
 }
 
+// What the tablecloth tests name when ThreadSanitizer skips them.
+constexpr const char* kSameBitsTest =
+    "Tablecloth.IsBitwiseTheSameOnOneAndTwoThreads runs the same passes on 1 and 2 threads";
+
 TEST(Tablecloth, PulledFastTheClothComesOutAndTheyStay) {
-  WEFT_SKIP_UNDER_TSAN("Tablecloth.IsBitwiseTheSameOnOneAndTwoThreads runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // 4 m/s: the cloth leaves from under them in about 0.2 s, friction (mu 0.4) can give
   // them at most ~0.8 m/s in that time. Boxes: a few cm. The ball: the friction impulse
   // at its lowest point leaves it no angular momentum about its contact with the table,
@@ -684,7 +688,7 @@ TEST(Tablecloth, PulledFastTheClothComesOutAndTheyStay) {
 }
 
 TEST(Tablecloth, PulledSlowlyTheyComeAlong) {
-  WEFT_SKIP_UNDER_TSAN("Tablecloth.IsBitwiseTheSameOnOneAndTwoThreads runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // 0.4 m/s: static friction carries the boxes with the cloth. The ball rolls on it: a
   // uniform ball on a belt that starts moving at V ends up rolling at 2/7 V.
   const TableclothRun r = runTablecloth(0.4, 1.5, 1);
@@ -698,7 +702,7 @@ TEST(Tablecloth, PulledSlowlyTheyComeAlong) {
 }
 
 TEST(Tablecloth, WithoutSupportsTheBoxesSinkThroughTheCloth) {
-  WEFT_SKIP_UNDER_TSAN("Tablecloth.IsBitwiseTheSameOnOneAndTwoThreads runs the same passes on 1 and 2 threads");
+  WEFT_SKIP_UNDER_TSAN(kSameBitsTest);
   // The same slow pull with support contacts off: a light particle between a heavy box
   // and the table cannot hold the box up through the explicit exchange alone.
   const TableclothRun r = runTablecloth(0.4, 0.5, 1, false);

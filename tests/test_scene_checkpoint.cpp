@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "support/sanitizers.hpp"
 #include "weft/io/scene.hpp"
 #include "weft/weft.hpp"
 
@@ -21,11 +22,7 @@ namespace {
 
 using namespace weft;
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr std::int64_t kStepDivisor = 40;  // the sanitizers are 10-20x slower: shorter runs
-#else
-constexpr std::int64_t kStepDivisor = 4;
-#endif
+constexpr std::int64_t kStepDivisor = weft::test::kSanitized ? 40 : 4;  // the sanitizers are 10-20x slower
 
 /// Steps of the resume test per scene: a quarter of test_scene_hashes' budget (enough for
 /// the cloths to reach their obstacles and the bodies to touch), at least 8.

@@ -17,6 +17,13 @@ inline constexpr bool kSanitized = true;
 inline constexpr bool kSanitized = false;
 #endif
 
+#if defined(__SANITIZE_THREAD__)
+/// True in the ThreadSanitizer build.
+inline constexpr bool kThreadSanitizer = true;
+#else
+inline constexpr bool kThreadSanitizer = false;
+#endif
+
 }  // namespace weft::test
 
 /// Skips the test under ThreadSanitizer, which looks for data races and not for physics:
@@ -24,8 +31,5 @@ inline constexpr bool kSanitized = false;
 /// over seconds of simulated time, while a shorter test named in `why` runs the same
 /// parallel passes on one and two threads and compares the bits. The Release and
 /// AddressSanitizer builds run the test.
-#if defined(__SANITIZE_THREAD__)
-#define WEFT_SKIP_UNDER_TSAN(why) GTEST_SKIP() << "skipped under ThreadSanitizer: " << (why)
-#else
-#define WEFT_SKIP_UNDER_TSAN(why) static_cast<void>(0)
-#endif
+#define WEFT_SKIP_UNDER_TSAN(why) \
+  if (::weft::test::kThreadSanitizer) GTEST_SKIP() << "skipped under ThreadSanitizer: " << (why)
