@@ -199,6 +199,30 @@ TEST(Cli, StretchIsTheLibrarysOverTheStructuralSprings) {
   EXPECT_TRUE(pile["mean_stretch"].is_null()) << pile.dump();
 }
 
+TEST(Cli, RigidBodiesLetIntoEachOtherGiveAWarningNotABareOk) {
+  const nlohmann::json fine = runJson("run stack --steps 30");
+  ASSERT_TRUE(fine.is_object());
+  EXPECT_EQ(fine["status"], "ok");
+  EXPECT_EQ(fine["warnings"], nlohmann::json::array()) << fine.dump();
+  EXPECT_LT(fine["body_deepest_share_run"].get<double>(), 0.05);
+
+  const nlohmann::json broken = runJson("run stack --steps 20 --dt 0.5");
+  ASSERT_TRUE(broken.is_object());
+  EXPECT_EQ(broken["status"], "ok") << "the run goes on: nothing is NaN";
+  ASSERT_EQ(broken["warnings"].size(), 1u) << broken.dump();
+  const std::string w = broken["warnings"][0];
+  for (const char* part :
+       {"rigid bodies ", " m into each other in the step starting at t = ",
+        "x the thinner piece's inner radius (0.25 m)", "Reduce dt (now 0.5 s)", "--time-of-impact rollback"})
+    EXPECT_NE(w.find(part), std::string::npos) << part << "\n" << w;
+  EXPECT_GT(broken["body_deepest_share_run"].get<double>(), 0.5);
+
+  const CliRun text = weft("run stack --steps 20 --dt 0.5", true);
+  EXPECT_EQ(text.exitCode, 0);
+  EXPECT_NE(text.out.find("weft run: warning: rigid bodies "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("  status       ok, with 1 warning (on standard error)"), std::string::npos) << text.out;
+}
+
 TEST(Cli, StateHashIsTheSameForOneAndTwoThreads) {
   for (const IntegratorKind kind : kAllIntegrators)
     for (const char* precision : {"float", "double"}) {

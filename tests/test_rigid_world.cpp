@@ -122,6 +122,44 @@ TEST(RigidContact, StackOfTenBoxesStands) {
   EXPECT_LT(world.lastStats().maxPenetration, 0.01);
 }
 
+TEST(RigidContact, BodiesLetIntoEachOtherAreNamedWithTheirDepthAndTime) {
+  Executor exec(1);
+  {  // The stack at its own step: contacts a few mm deep against 0.25 m half-widths.
+    RigidWorld world(stackScene(10), kGravity);
+    ASSERT_TRUE(runSteps(world, exec, rigidSceneTimeStep(), 120).ok());
+    EXPECT_LT(world.totalStats().deepestShare, 0.05);
+    EXPECT_GT(world.totalStats().deepestShare, 0.0);
+  }
+  {  // At dt = 0.5 s a box falls 2.5 m a step: the contacts let the boxes through each other.
+    RigidWorld world(stackScene(10), kGravity);
+    ASSERT_TRUE(runSteps(world, exec, 0.5, 20).ok());
+    const RigidStats& t = world.totalStats();
+    EXPECT_GT(t.deepestShare, RigidStats::kDeepShare);
+    EXPECT_NEAR(t.deepestDepth / t.deepestShare, 0.25, 1e-9) << "the boxes' inner radius";
+    EXPECT_GE(t.deepestA, 0);
+    EXPECT_GT(t.deepestB, t.deepestA);
+    EXPECT_GT(t.deepestTime, 0.0);
+    EXPECT_EQ(std::fmod(t.deepestTime, 0.5), 0.0) << "the start of a step";
+  }
+  {  // Placed overlapping (a sphere's middle inside a box): named in the first step.
+    RigidOptions o = stackScene(1);
+    RigidBodyDesc ball = o.bodies.back();
+    ball.name = "ball";
+    ball.shapes = {RigidShapeDesc{}};
+    ball.shapes[0].kind = RigidShapeDesc::Kind::Sphere;
+    ball.shapes[0].radius = 0.1;
+    ball.position = o.bodies.back().position + Vec3(0, 0.3, 0);  // 0.05 m into the box's top
+    o.bodies.push_back(ball);
+    RigidWorld world(o, kGravity);
+    ASSERT_TRUE(world.step(rigidSceneTimeStep(), exec).ok());
+    const RigidStats& t = world.totalStats();
+    EXPECT_NEAR(t.deepestShare, 0.5, 0.02) << "0.05 m into a sphere of radius 0.1 m";
+    EXPECT_EQ(t.deepestA, 1);
+    EXPECT_EQ(t.deepestB, 2);
+    EXPECT_EQ(t.deepestTime, 0.0);
+  }
+}
+
 // Distance slid along the slope in `seconds` from rest.
 double slide(double degrees, double mu, double seconds) {
   Executor exec(1);

@@ -954,6 +954,15 @@ const std::vector<BadScene>& badScenes() {
        grid(R"(, "pins": [{"particles": [0, 1], "path": {}}, {"box": {"min": [-1, -1, -1], "max": [0, 1, 1]},
                            "path": {"velocity": [1, 0, 0]}}])"),
        "bodies[0].pins[1]", "particle 0 is already moved by pins[0]"},
+      {"pin_listed_twice", rope(R"(, "particles": 32, "pins": [0, 31, 0])"), "bodies[0].pins[2]",
+       "particle 0 is already listed by pins[0]: list each particle once"},
+      {"pin_listed_twice_in_one_list", grid(R"(, "pins": [{"particles": [3, 5, 3]}])"), "bodies[0].pins[0]",
+       "particle 3 is listed twice in this pin"},
+      {"pin_fixed_then_moved", grid(R"(, "pins": [0, {"particles": [1, 0], "path": {"velocity": [0, 1, 0]}}])"),
+       "bodies[0].pins[1]", "particle 0 is both fixed and moved (by this pin and pins[0])"},
+      {"pin_moved_then_fixed_by_a_box",
+       grid(R"(, "pins": [{"particles": [0], "path": {}}, {"box": {"min": [-1, -1, -1], "max": [0, 1, 1]}}])"),
+       "bodies[0].pins[1]", "particle 0 is both fixed and moved (by this pin and pins[0])"},
       {"velocity_of_two", grid(R"(, "velocity": [1, 2])"), "bodies[0].velocity", "[1,2]"},
       // Collision
       {"collision_array", top(R"(, "collision": [])"), "collision", "must be an object, got array []"},
@@ -1227,6 +1236,13 @@ TEST(SceneBadFiles, MeshFilesThatAreNoClothFailAtAssembly) {
             R"([{"particles": [0], "path": {}}, {"box": {"min": [-99, -99, -99], "max": [99, 99, 99]}, "path": {}}])"));
       }),
       HasSubstr("mesh-scene: bodies[0].pins[1]: particle 0 is already moved by pins[0]"));
+  EXPECT_THAT(sceneError([&] { assembleScene<double>(meshScene("[4, 0, 4]")); }),
+              HasSubstr("mesh-scene: bodies[0].pins[2]: particle 4 is already listed by pins[0]"));
+  EXPECT_THAT(sceneError([&] {
+                assembleScene<float>(meshScene(R"([{"particles": [0], "path": {"velocity": [1, 0, 0]}},
+                                                   {"box": {"min": [-99, -99, -99], "max": [99, 99, 99]}}])"));
+              }),
+              HasSubstr("mesh-scene: bodies[0].pins[1]: particle 0 is both fixed and moved"));
 }
 
 /// What depends on the precision asked for when assembling (the command line's --precision

@@ -810,6 +810,26 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const std::string notFinite =
       notFiniteMessage(sim.stepCount()) +
       (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string());
+  // What the run did that its status does not stop it for, but that its figures should not
+  // be read without (to standard error, and in the JSON as `warnings`).
+  std::vector<std::string> warnings;
+  if (rigid && rigid->totalStats().deepestShare > weft::RigidStats::kDeepShare) {
+    const weft::RigidStats& t = rigid->totalStats();
+    const auto body = [&](weft::Index b) {
+      return std::to_string(b) + " (" + rigid->model().names[static_cast<size_t>(b)] + ")";
+    };
+    std::ostringstream w;
+    w << "rigid bodies " << body(t.deepestA) << " and " << body(t.deepestB) << " were " << t.deepestDepth
+      << " m into each other in the step starting at t = " << t.deepestTime << " s, " << t.deepestShare
+      << " x the thinner piece's inner radius (" << t.deepestDepth / t.deepestShare
+      << " m): the contacts let them pass into each other, so motions after that are not to be trusted. "
+      << (t.deepestTime == 0 ? "If they were placed overlapping, move them apart; otherwise reduce " : "Reduce ")
+      << "dt (now " << sim.timeStep() << " s)"
+      << (rigid->options().timeOfImpact == weft::RigidTimeOfImpact::Speculative ? " or use --time-of-impact rollback"
+                                                                                : "");
+    warnings.push_back(w.str());
+  }
+  for (const std::string& w : warnings) std::cerr << "weft run: warning: " << w << "\n";
   const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
                                         ": its frame cannot be written (" + unwritable +
                                         "); the frames before it are written";
@@ -856,6 +876,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     j["work_total"] = workJson(sim.totalWork(), 1);
     j["effects"] = effects;
     j["unused_settings"] = unused;
+    j["warnings"] = warnings;
     // CPU seconds (summed over threads) spent in each effect the scene lists.
     nlohmann::ordered_json perEffect = nlohmann::ordered_json::object();
     for (const std::string& name : effects) perEffect[name] = effectSeconds(name);
@@ -936,6 +957,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["support_contacts"] = last.supportContacts;  // held particles carrying bodies, last step
       j["body_max_penetration"] = last.maxPenetration;
       j["body_max_penetration_run"] = total.maxPenetration;  // deepest over the run
+      // ... as a share of the thinner piece's inner radius (1: its middle reached the other's surface)
+      j["body_deepest_share_run"] = total.deepestShare;  // above 0.5: a warning
       j["body_energy"] = rigid->energy();
       j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
       j["time_of_impact"] = weft::rigidTimeOfImpactName(rigid->options().timeOfImpact);
@@ -1022,7 +1045,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
             : !status.ok()        ? status.message()
             : !finite             ? notFinite
             : !unwritable.empty() ? stoppedUnwritable
-                                  : std::string("ok"))
+            : !warnings.empty()   ? "ok, with " + std::to_string(warnings.size()) +
+                                      (warnings.size() == 1 ? " warning" : " warnings") + " (on standard error)"
+                                : std::string("ok"))
         << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)

@@ -97,8 +97,8 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
         out.options.kinematicPins.push_back(std::move(kinematic));
       }
     }
-    if (const auto twice = movedTwice(b.pins, selections))
-      throw SceneError(field + ".pins[" + std::to_string(twice->pin) + "]: " + twice->what());
+    if (const auto conflict = pinConflict(b.pins, selections))
+      throw SceneError(field + ".pins[" + std::to_string(conflict->pin) + "]: " + conflict->what());
   }
   try {
     out.built = builder.build();

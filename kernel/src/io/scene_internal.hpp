@@ -84,8 +84,8 @@ std::optional<BodyGeometry> gridGeometry(const ClothGridSpec& s);
 
 /// Reads `pins` of the body `body` at `field`, one PinSpec per element (so pins[k] of the
 /// file is pins[k] of the spec, and of assembly's messages). With the body's geometry
-/// (ropes and grids), indices are checked here too, and so are boxes and kinematic pins
-/// that would move a particle twice (for bodies up to a million particles); the rest is
+/// (ropes and grids), indices are checked here too, and so are boxes and pins that
+/// contradict each other (PinConflict; for bodies up to a million particles); the rest is
 /// checked when assembled.
 std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::string& field,
                               const BodyGeometry* geometry);
@@ -94,16 +94,21 @@ std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::stri
 /// (`position` gives body-local positions), sorted, each once.
 std::vector<Index> pinSelection(const PinSpec& pin, Index count, const std::function<Vec3d(Index)>& position);
 
-/// A particle in the selections of two kinematic pins (the simulation would refuse it).
-struct MovedTwice {
+/// Two pins of a body that contradict or repeat each other over one particle: a particle
+/// listed by index twice (most likely a typo for another index), moved by two kinematic
+/// pins, or fixed by one pin and moved by another (the simulation would move it and the
+/// fixed pin would be silently ignored).
+struct PinConflict {
+  enum class Kind { ListedTwice, MovedTwice, FixedAndMoved };
+  Kind kind;
   size_t pin;      // the later pin
   Index particle;  // body-local
-  size_t earlier;  // the pin that already moves it
+  size_t earlier;  // the earlier pin
   std::string what() const;
 };
-/// `selections[q]` is pins[q]'s (see pinSelection).
-std::optional<MovedTwice> movedTwice(const std::vector<PinSpec>& pins,
-                                     const std::vector<std::vector<Index>>& selections);
+/// `selections[q]` is pins[q]'s (see pinSelection). The first conflict in pin order.
+std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
+                                       const std::vector<std::vector<Index>>& selections);
 
 /// "the body has 16 particles, 0 .. 15"
 std::string particleRange(Index count);

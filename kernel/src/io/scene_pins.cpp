@@ -58,21 +58,57 @@ std::vector<Index> pinSelection(const PinSpec& pin, Index count, const std::func
   return selected;
 }
 
-std::string MovedTwice::what() const {
-  return "particle " + std::to_string(particle) + " is already moved by pins[" + std::to_string(earlier) +
-         "]: a particle can follow one path only";
+std::string PinConflict::what() const {
+  const std::string i = "particle " + std::to_string(particle), e = "pins[" + std::to_string(earlier) + "]";
+  switch (kind) {
+    case Kind::ListedTwice:
+      return i + (earlier == pin ? " is listed twice in this pin" : " is already listed by " + e) +
+             ": list each particle once";
+    case Kind::MovedTwice:
+      return i + " is already moved by " + e + ": a particle can follow one path only";
+    case Kind::FixedAndMoved:
+      break;
+  }
+  return i + " is both fixed and moved (by this pin and " + e +
+         "): a particle is either fixed or follows a path; take it out of one of them";
 }
 
-std::optional<MovedTwice> movedTwice(const std::vector<PinSpec>& pins,
-                                     const std::vector<std::vector<Index>>& selections) {
-  std::vector<std::pair<Index, size_t>> moved;  // (particle, pin)
-  for (size_t q = 0; q < pins.size(); ++q)
-    if (pins[q].path)
-      for (const Index i : selections[q]) moved.emplace_back(i, q);
-  std::sort(moved.begin(), moved.end());
-  for (size_t m = 1; m < moved.size(); ++m)
-    if (moved[m].first == moved[m - 1].first) return MovedTwice{moved[m].second, moved[m].first, moved[m - 1].second};
-  return std::nullopt;
+std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
+                                       const std::vector<std::vector<Index>>& selections) {
+  using Kind = PinConflict::Kind;
+  std::optional<PinConflict> first;  // the one with the lowest (pin, particle)
+  const auto keep = [&first](Kind kind, size_t pin, Index particle, size_t earlier) {
+    if (!first || pin < first->pin || (pin == first->pin && particle < first->particle))
+      first = PinConflict{kind, pin, particle, earlier};
+  };
+  // (particle, pin) pairs, sorted: the pins of one particle are adjacent, in pin order.
+  std::vector<std::pair<Index, size_t>> selected, listed;
+  for (size_t q = 0; q < pins.size(); ++q) {
+    for (const Index i : selections[q]) selected.emplace_back(i, q);
+    for (const Index i : pins[q].particles) listed.emplace_back(i, q);
+  }
+  std::sort(selected.begin(), selected.end());
+  std::optional<size_t> moved, fixed;  // the first pin moving / fixing the current particle
+  for (size_t m = 0; m < selected.size(); ++m) {
+    const auto [i, q] = selected[m];
+    if (m == 0 || i != selected[m - 1].first) moved = fixed = std::nullopt;
+    if (pins[q].path) {
+      if (moved)
+        keep(Kind::MovedTwice, q, i, *moved);
+      else if (fixed)
+        keep(Kind::FixedAndMoved, q, i, *fixed);
+      if (!moved) moved = q;
+    } else {
+      if (moved) keep(Kind::FixedAndMoved, q, i, *moved);
+      if (!fixed) fixed = q;
+    }
+  }
+  // An index written twice: checked after the contradictions, which say more on a tie.
+  std::sort(listed.begin(), listed.end());
+  for (size_t m = 1; m < listed.size(); ++m)
+    if (listed[m].first == listed[m - 1].first)
+      keep(Kind::ListedTwice, listed[m].second, listed[m].first, listed[m - 1].second);
+  return first;
 }
 
 std::string particleRange(Index count) {
@@ -141,10 +177,9 @@ std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::stri
   }
   if (geometry && geometry->count <= kMaxScannedParticles) {
     std::vector<std::vector<Index>> selections(pins.size());
-    for (size_t q = 0; q < pins.size(); ++q)
-      if (pins[q].path) selections[q] = pinSelection(pins[q], geometry->count, geometry->position);
-    if (const auto twice = movedTwice(pins, selections))
-      r.fail(f + "[" + std::to_string(twice->pin) + "]", twice->what());
+    for (size_t q = 0; q < pins.size(); ++q) selections[q] = pinSelection(pins[q], geometry->count, geometry->position);
+    if (const auto conflict = pinConflict(pins, selections))
+      r.fail(f + "[" + std::to_string(conflict->pin) + "]", conflict->what());
   }
   return pins;
 }

@@ -58,6 +58,13 @@ void RigidStats::add(const RigidStats& s) {
   rollbacks += s.rollbacks;
   halvingLimitHits += s.halvingLimitHits;
   maxPenetration = std::max(maxPenetration, s.maxPenetration);
+  if (s.deepestShare > deepestShare) {
+    deepestShare = s.deepestShare;
+    deepestDepth = s.deepestDepth;
+    deepestA = s.deepestA;
+    deepestB = s.deepestB;
+    deepestTime = s.deepestTime;
+  }
 }
 
 const char* rigidTimeOfImpactName(RigidTimeOfImpact mode) {
@@ -191,6 +198,7 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
         piece.kind = RigidShapeDesc::Kind::Sphere;
         piece.radius = sh.radius;
         piece.boundingRadius = sh.radius;
+        piece.innerRadius = sh.radius;
         piece.localMin = Vec3::Constant(-sh.radius);
         piece.localMax = Vec3::Constant(sh.radius);
         mp = sphereMassProperties(sh.radius, d.density);
@@ -204,6 +212,9 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
         piece.kind = RigidShapeDesc::Kind::Hull;
         piece.hull = static_cast<Index>(m.hulls.size());
         piece.boundingRadius = hull.boundingRadius;
+        piece.innerRadius = hull.boundingRadius;
+        for (const ConvexFace& face : hull.faces)
+          piece.innerRadius = std::min(piece.innerRadius, face.offset - face.normal.dot(hull.centroid));
         piece.localMin = piece.localMax = hull.vertices[0];
         for (const Vec3& p : hull.vertices) {
           piece.localMin = piece.localMin.cwiseMin(p);

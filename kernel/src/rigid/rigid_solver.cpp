@@ -66,6 +66,7 @@ void RigidWorld::buildConstraints(double h) {
     if (man.pointCount == 0) continue;
     const Index a = m.pieces[pairs_[k].a].body;
     const Index b = m.pieces[pairs_[k].b].body;
+    const double thinner = std::min(m.pieces[pairs_[k].a].innerRadius, m.pieces[pairs_[k].b].innerRadius);
     const std::uint64_t key = pairs_[k].key();
     // The same pair's points of the last step, for warm starting.
     const auto found = std::lower_bound(lastPairs_.begin(), lastPairs_.end(), key,
@@ -113,6 +114,13 @@ void RigidWorld::buildConstraints(double h) {
       c.separation = cp.separation;
       c.previousSeparation = cp.separation;
       last_.maxPenetration = std::max(last_.maxPenetration, -cp.separation);
+      if (const double share = -cp.separation / thinner; share > last_.deepestShare) {
+        last_.deepestShare = share;
+        last_.deepestDepth = -cp.separation;
+        last_.deepestA = a;
+        last_.deepestB = b;
+        last_.deepestTime = state_.time;
+      }
       const Vec3 dv = state_.v[b] + state_.w[b].cross(c.rB) - state_.v[a] - state_.w[a].cross(c.rA);
       c.approachVelocity = dv.dot(c.normal);
       const Vec3 slip = dv - c.approachVelocity * c.normal;

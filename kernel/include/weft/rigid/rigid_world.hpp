@@ -143,6 +143,7 @@ struct RigidPiece {
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();        // piece origin relative to the centre of mass, body axes, m
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // piece axes in body axes
   double boundingRadius = 0;                               // about `centre`, m
+  double innerRadius = 0;  // Sphere: radius; Hull: from the vertices' mean to the nearest face plane, m
   Eigen::Vector3d centre =
       Eigen::Vector3d::Zero();  // bounding sphere centre, body frame relative to the centre of mass, m
   Eigen::Vector3d localMin = Eigen::Vector3d::Zero();  // the piece's box in its own frame, m
@@ -198,6 +199,16 @@ struct RigidStats {
   std::int64_t rollbacks = 0;         // Rollback: chunks cut before or taken back after solving
   std::int64_t halvingLimitHits = 0;  // Rollback: chunks taken at the shortest length though too deep
   double maxPenetration = 0;          // deepest contact at the start of the step's solve, m (>= 0)
+  /// The deepest contact between two bodies as a share of the thinner piece's innerRadius
+  /// (1: the thinner piece's middle has reached the other's surface), its depth (m), its
+  /// pair of bodies (-1 when there is none) and the time its step started (s). Above
+  /// kDeepShare the contacts have let the bodies into each other: the step is too long
+  /// for them, or they started overlapping.
+  static constexpr double kDeepShare = 0.5;
+  double deepestShare = 0;
+  double deepestDepth = 0;
+  Index deepestA = -1, deepestB = -1;
+  double deepestTime = 0;
   void add(const RigidStats& s);
 };
 
