@@ -141,6 +141,23 @@ TEST(RigidContact, BodiesLetIntoEachOtherAreNamedWithTheirDepthAndTime) {
     EXPECT_GT(t.deepestTime, 0.0);
     EXPECT_EQ(std::fmod(t.deepestTime, 0.5), 0.0) << "the start of a step";
   }
+  for (const double dt : {rigidSceneTimeStep(), 0.5}) {  // and Simulation::warnings says so, or nothing
+    SimulationOptions options;
+    options.dt = dt;
+    options.threads = 1;
+    options.rigid = stackScene(10);
+    Simulation<double> sim(ModelBuilder<double>().build(), options);
+    ASSERT_TRUE(sim.run(20).ok());
+    const std::vector<std::string> w = sim.warnings();
+    if (dt != 0.5) {
+      EXPECT_TRUE(w.empty()) << w.front();
+      continue;
+    }
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_THAT(w[0], ::testing::StartsWith("rigid bodies "));
+    EXPECT_THAT(w[0], ::testing::HasSubstr(" (box"));
+    EXPECT_THAT(w[0], ::testing::HasSubstr("Reduce dt (now 0.5 s)"));
+  }
   {  // Placed overlapping (a sphere's middle inside a box): named in the first step.
     RigidOptions o = stackScene(1);
     RigidBodyDesc ball = o.bodies.back();

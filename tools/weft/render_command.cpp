@@ -115,6 +115,7 @@ int render(const RenderOptions& o, const weft::SceneSpec& spec) {
   if (status.ok() && !finite)
     out << "  status       " << notFiniteMessage(sim.stepCount()) << "; pictures up to the last finite state\n";
   std::cout << out.str();
+  for (const std::string& w : sim.warnings()) std::cerr << "weft render: warning: " << w << "\n";
   return status.ok() && finite ? 0 : 3;
 }
 

@@ -812,23 +812,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string());
   // What the run did that its status does not stop it for, but that its figures should not
   // be read without (to standard error, and in the JSON as `warnings`).
-  std::vector<std::string> warnings;
-  if (rigid && rigid->totalStats().deepestShare > weft::RigidStats::kDeepShare) {
-    const weft::RigidStats& t = rigid->totalStats();
-    const auto body = [&](weft::Index b) {
-      return std::to_string(b) + " (" + rigid->model().names[static_cast<size_t>(b)] + ")";
-    };
-    std::ostringstream w;
-    w << "rigid bodies " << body(t.deepestA) << " and " << body(t.deepestB) << " were " << t.deepestDepth
-      << " m into each other in the step starting at t = " << t.deepestTime << " s, " << t.deepestShare
-      << " x the thinner piece's inner radius (" << t.deepestDepth / t.deepestShare
-      << " m): the contacts let them pass into each other, so motions after that are not to be trusted. "
-      << (t.deepestTime == 0 ? "If they were placed overlapping, move them apart; otherwise reduce " : "Reduce ")
-      << "dt (now " << sim.timeStep() << " s)"
-      << (rigid->options().timeOfImpact == weft::RigidTimeOfImpact::Speculative ? " or use --time-of-impact rollback"
-                                                                                : "");
-    warnings.push_back(w.str());
-  }
+  const std::vector<std::string> warnings = sim.warnings();
   for (const std::string& w : warnings) std::cerr << "weft run: warning: " << w << "\n";
   const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
                                         ": its frame cannot be written (" + unwritable +

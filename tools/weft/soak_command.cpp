@@ -29,6 +29,7 @@ struct RunResult {
   double energyMax = 0, energyMin = 0;
   double residentEarly = 0, residentHalf = 0, residentEnd = 0;  // bytes, after 1 % and 50 % of the steps, at the end
   double listsHalf = 0, listsEnd = 0;  // bytes of Simulation::contactListBytes at 50 % and at the end
+  std::vector<std::string> warnings;   // Simulation::warnings at the end
 };
 
 template <class S>
@@ -71,6 +72,7 @@ RunResult soakRun(const weft::SceneSpec& spec, std::int64_t steps, int threads) 
   // (With the stability check off nothing stops a state that overflowed: not "ok" either.)
   else if (!sim.stateFinite())
     r.status = "not_finite: " + notFiniteMessage(sim.stepCount());
+  r.warnings = sim.warnings();
   const weft::RigidWorld* rigid = sim.rigidWorld();
   r.hash = rigid ? weft::stateHash(sim.state()) ^ weft::rigidStateHash(rigid->state()) : weft::stateHash(sim.state());
   return r;
@@ -110,7 +112,7 @@ int runSoak(const SoakOptions& o) {
   if (o.threads.empty()) throw std::invalid_argument("--threads needs at least one thread count");
   if (!o.out.empty()) checkOutputFile(o.out, "--out");
   const std::vector<std::string> scenes = o.scenes.empty() ? weft::builtinSceneNames() : o.scenes;
-  std::ostringstream table;
+  std::ostringstream table, notes;  // notes: the warnings, printed after the table
   table << "| scene | precision | steps | simulated s | wall s (threads";
   // A count above what the machine runs is run on fewer threads (the kernel's cap): the
   // header and stderr say so, since the hashes compared are then of fewer thread counts.
@@ -176,6 +178,10 @@ int runSoak(const SoakOptions& o) {
         << " -> " << fixed(first.residentEnd / (1024.0 * 1024), 1) << " | ";
     if (failed.empty()) {
       row << "pass";
+      // A warning does not fail the soak (the run went on, finite and bounded), but is shown.
+      if (!first.warnings.empty())
+        row << " (" << first.warnings.size() << (first.warnings.size() == 1 ? " warning" : " warnings")
+            << ", below the table)";
       if (lists >= 0.1 * 1024 * 1024)
         row << " (contact lists grew by " << fixed(lists / (1024.0 * 1024), 1) << " MB in the second half)";
     } else {
@@ -183,8 +189,13 @@ int runSoak(const SoakOptions& o) {
       for (size_t k = 0; k < failed.size(); ++k) row << (k ? ", " : "") << failed[k];
     }
     row << " |\n";
+    for (const std::string& w : first.warnings) notes << "- " << name << ": warning: " << w << "\n";
     std::cout << row.str() << std::flush;
     table << row.str();
+  }
+  if (!notes.str().empty()) {
+    std::cout << "\n" << notes.str() << std::flush;
+    table << "\n" << notes.str();
   }
   if (!o.out.empty()) writeTextFile(o.out, table.str());
   return allPass ? 0 : 1;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -470,6 +471,29 @@ bool Simulation<S>::stateFinite() const {
   for (size_t b = 0; b < r.x.size(); ++b)
     if (!(r.x[b].allFinite() && r.q[b].coeffs().allFinite() && r.v[b].allFinite() && r.w[b].allFinite())) return false;
   return std::isfinite(r.time);
+}
+
+template <class S>
+std::vector<std::string> Simulation<S>::warnings() const {
+  std::vector<std::string> out;
+  if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
+    const RigidStats& t = rigid_->totalStats();
+    const auto body = [&](Index b) {
+      return std::to_string(b) + " (" + rigid_->model().names[static_cast<size_t>(b)] + ")";
+    };
+    std::ostringstream w;
+    w << "rigid bodies " << body(t.deepestA) << " and " << body(t.deepestB) << " were " << t.deepestDepth
+      << " m into each other in the step starting at t = " << t.deepestTime << " s, " << t.deepestShare
+      << " x the thinner piece's inner radius (" << t.deepestDepth / t.deepestShare
+      << " m): the contacts let them pass into each other, so motions after that are not to be trusted. "
+      << (t.deepestTime == 0 ? "If they were placed overlapping, move them apart; otherwise reduce " : "Reduce ")
+      << "dt (now " << options_.dt << " s)"
+      << (rigid_->options().timeOfImpact == RigidTimeOfImpact::Speculative
+              ? " or take the rollback time of impact (--time-of-impact rollback)"
+              : "");
+    out.push_back(w.str());
+  }
+  return out;
 }
 
 template class Simulation<float>;

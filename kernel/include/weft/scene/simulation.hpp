@@ -112,6 +112,12 @@ class Simulation {
   /// a step never leaves them otherwise; with it off (StabilityOptions::enabled = false)
   /// nothing stops a state that overflowed, and this is how a caller tells.
   bool stateFinite() const;
+  /// What the steps so far did that does not stop them but that their results should not
+  /// be read without, one line each for people (allocates; call after a run, not per step).
+  /// Today: rigid bodies let into each other deeper than RigidStats::kDeepShare of the
+  /// thinner piece's inner radius (RigidStats::deepestShare), naming them, the depth, the
+  /// step and what to change. Empty when there is nothing to say.
+  std::vector<std::string> warnings() const;
   /// Replaces the state (same particle count) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
