@@ -697,6 +697,23 @@ TEST(Cli, AParticleThatStartsInsideAnObstacleIsNamed) {
   EXPECT_GT(runJson("run " + path)["max_penetration_at_start"].get<double>(), 0.005);
   const CliRun drape = weft("run drape --size 8 --steps 1", true);
   EXPECT_EQ(drape.out.find("note"), std::string::npos) << drape.out;
+  // Deep enough that pushing the particles out overstretches the springs around them: the
+  // failure names the start as the likelier cause than the time step.
+  std::ofstream(path) << R"({"name": "deep", "dt": 2e-4, "steps": 2,
+    "bodies": [{"type": "cloth_grid", "width": 32, "height": 32, "origin": [-0.5, 0.5, -0.5]}],
+    "collision": {"obstacles": [{"type": "sphere", "center": [0, 0.5, 0], "radius": 0.4}]}})";
+  const CliRun deep = weft("run " + path + " --json", false);
+  EXPECT_EQ(deep.exitCode, 3) << deep.out;
+  const nlohmann::json j = nlohmann::json::parse(deep.out, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << deep.out;
+  EXPECT_EQ(j["status"], "overstretched");
+  EXPECT_NE(j["status_message"].get<std::string>().find("; but the run started with a particle 0.37"),
+            std::string::npos)
+      << j["status_message"];
+  EXPECT_NE(j["status_message"].get<std::string>().find(
+                " m inside an obstacle (the note above), the likelier cause: move the body or the obstacle first"),
+            std::string::npos)
+      << j["status_message"];
   std::filesystem::remove(path);
 }
 

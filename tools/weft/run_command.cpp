@@ -813,6 +813,17 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // What the run did that its status does not stop it for, but that its figures should not
   // be read without (to standard error, and in the JSON as `warnings`).
   const std::vector<std::string> warnings = sim.warnings();
+  // A step that failed in a run that started with a particle inside an obstacle: the start,
+  // not the time step, is the likelier cause (the response pushes such a particle out in
+  // one step, which can overstretch the springs around it).
+  std::ostringstream failureText;
+  if (!status.ok()) {
+    failureText << status.message();
+    if (penetrationAtStart > thickness)
+      failureText << "; but the run started with a particle " << penetrationAtStart - thickness
+                  << " m inside an obstacle (the note above), the likelier cause: move the body or the obstacle first";
+  }
+  const std::string failure = failureText.str();
   for (const std::string& w : warnings) std::cerr << "weft run: warning: " << w << "\n";
   const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
                                         ": its frame cannot be written (" + unwritable +
@@ -873,7 +884,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (interrupted)
       j["status_message"] = std::string("stopped by ") + signalName(interrupted) + " after step " +
                             std::to_string(done) + " of " + std::to_string(steps);
-    if (!status.ok()) j["status_message"] = status.message();
+    if (!status.ok()) j["status_message"] = failure;
     if (status.ok() && !interrupted && !finite) {
       j["status"] = "not_finite";
       j["status_message"] = notFinite;
@@ -1026,7 +1037,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     out << "  status       "
         << (interrupted ? std::string("interrupted by ") + signalName(interrupted) + " after step " +
                               std::to_string(done) + " of " + std::to_string(steps)
-            : !status.ok()        ? status.message()
+            : !status.ok()        ? failure
             : !finite             ? notFinite
             : !unwritable.empty() ? stoppedUnwritable
             : !warnings.empty()   ? "ok, with " + std::to_string(warnings.size()) +
