@@ -717,6 +717,35 @@ TEST(Cli, AParticleThatStartsInsideAnObstacleIsNamed) {
   std::filesystem::remove(path);
 }
 
+// Particles that went through an obstacle do not end a bare "ok": a warning says how many
+// and what to change; a run that kept them out says nothing.
+TEST(Cli, ParticlesThatWentThroughAnObstacleGiveAWarning) {
+  const std::string path = ::testing::TempDir() + "weft_cli_tunnel.json";
+  const auto write = [&](const char* continuous) {
+    std::ofstream(path) << R"({"name": "tunnel", "dt": 0.01, "steps": 3,
+      "bodies": [{"type": "cloth_grid", "width": 4, "height": 4, "origin": [-0.1, 0.5, -0.1],
+                  "velocity": [0, -30, 0]}],
+      "collision": {"continuous": )"
+                        << continuous << R"(, "obstacles": [{"type": "box", "center": [0, 0, 0],
+                                                            "half_extents": [1, 0.005, 1]}]}})";
+  };
+  write("false");
+  const nlohmann::json through = runJson("run " + path);
+  ASSERT_TRUE(through.is_object());
+  EXPECT_EQ(through["status"], "ok");
+  EXPECT_EQ(through["tunnelled"], 16);
+  ASSERT_EQ(through["warnings"].size(), 1u) << through.dump();
+  EXPECT_EQ(through["warnings"][0],
+            "16 particles went through an obstacle over the run (they ended inside it or beyond a thin one): the "
+            "detection is not continuous (collision.continuous false); turn it on");
+  write("true");
+  const nlohmann::json held = runJson("run " + path);
+  ASSERT_TRUE(held.is_object());
+  EXPECT_EQ(held["tunnelled"], 0);
+  EXPECT_EQ(held["warnings"], nlohmann::json::array()) << held.dump();
+  std::filesystem::remove(path);
+}
+
 // weft's own example files use every setting they write: a run of each names none (a key
 // an example writes for nothing would teach users to write it too).
 TEST(Cli, EveryExampleFileUsesEverySettingItWrites) {

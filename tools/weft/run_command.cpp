@@ -812,7 +812,15 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string());
   // What the run did that its status does not stop it for, but that its figures should not
   // be read without (to standard error, and in the JSON as `warnings`).
-  const std::vector<std::string> warnings = sim.warnings();
+  std::vector<std::string> warnings = sim.warnings();
+  // Over the run, with obstacles: particles that ended beyond a thin obstacle or inside one.
+  const weft::ContactReport contacts = sim.contactSolver() ? sim.contactReport(&*initial) : weft::ContactReport{};
+  if (contacts.tunnelled > 0)
+    warnings.push_back(std::to_string(contacts.tunnelled) + (contacts.tunnelled == 1 ? " particle" : " particles") +
+                       " went through an obstacle over the run (they ended inside it or beyond a thin one): " +
+                       (sim.options().collision.continuous
+                            ? "the continuous detection did not hold them; reduce dt"
+                            : "the detection is not continuous (collision.continuous false); turn it on"));
   // A step that failed in a run that started with a particle inside an obstacle: the start,
   // not the time step, is the likelier cause (the response pushes such a particle out in
   // one step, which can overstretch the springs around it).
@@ -910,7 +918,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (sim.contactSolver()) {
       // At the end of the run: particles in contact, the deepest penetration (m); over the
       // run: chunks rolled back, and particles that ended beyond a thin obstacle or inside one.
-      const weft::ContactReport report = sim.contactReport(&*initial);
+      const weft::ContactReport& report = contacts;
       j["contacts"] = report.contacts;
       j["max_penetration"] = report.maxPenetration;
       j["rollbacks"] = sim.totalCollision().rollbacks;
@@ -1008,7 +1016,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           << ", energy " << rigid->energy() << " J\n";
     }
     if (sim.contactSolver()) {
-      const weft::ContactReport report = sim.contactReport(&*initial);
+      const weft::ContactReport& report = contacts;
       out << "  obstacles    " << report.contacts << " particles in contact at the end (deepest "
           << report.maxPenetration << " m), " << sim.totalCollision().rollbacks << " rollbacks, "
           << sim.totalCollision().edgeContacts << " edge contacts, " << sim.totalCollision().cornerContacts
