@@ -49,6 +49,7 @@ TEST(View, SplitScreenUnderAVirtualDisplay) {
                                 Stderr::Capture);
   ASSERT_EQ(run.exitCode, 0) << run.out << run.err;
   EXPECT_NE(run.out.find("300 frames"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("It runs until closed: the scene's length ("), std::string::npos) << run.out;
   const weftrender::Image image = weftrender::readPng(shot);
   ASSERT_EQ(image.width, 320);
   ASSERT_EQ(image.height, 240);

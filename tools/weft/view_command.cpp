@@ -526,7 +526,8 @@ int viewScene(const ViewOptions& o) {
   std::cout << "weft view " << spec.name
             << ": drag to orbit (right button: pan, wheel: zoom), drag the cloth to pull it; space pause, n step, "
                "r reset, i / o integrator (left / right), [ ] dt, p precision, t threads, v split screen, f frame, "
-               "q quit\n";
+               "q quit. It runs until closed: the scene's length ("
+            << weft::sceneStepCount(spec) << " steps) bounds weft run and weft render, not the view\n";
 
   weftrender::DrawFrame frame;
   std::int64_t drawn = 0;
