@@ -959,10 +959,10 @@ const std::vector<BadScene>& badScenes() {
       {"pin_listed_twice_in_one_list", grid(R"(, "pins": [{"particles": [3, 5, 3]}])"), "bodies[0].pins[0]",
        "particle 3 is listed twice in this pin"},
       {"pin_fixed_then_moved", grid(R"(, "pins": [0, {"particles": [1, 0], "path": {"velocity": [0, 1, 0]}}])"),
-       "bodies[0].pins[1]", "particle 0 is both fixed and moved (by this pin and pins[0])"},
-      {"pin_moved_then_fixed_by_a_box",
-       grid(R"(, "pins": [{"particles": [0], "path": {}}, {"box": {"min": [-1, -1, -1], "max": [0, 1, 1]}}])"),
-       "bodies[0].pins[1]", "particle 0 is both fixed and moved (by this pin and pins[0])"},
+       "bodies[0].pins[1]", "particle 0 is both fixed by its index and moved (by this pin and pins[0])"},
+      {"pin_moved_by_a_box_then_fixed",
+       grid(R"(, "pins": [{"box": {"min": [-1, -1, -1], "max": [0, 1, 1]}, "path": {}}, {"particles": [2, 0]}])"),
+       "bodies[0].pins[1]", "particle 0 is both fixed by its index and moved (by this pin and pins[0])"},
       {"velocity_of_two", grid(R"(, "velocity": [1, 2])"), "bodies[0].velocity", "[1,2]"},
       // Collision
       {"collision_array", top(R"(, "collision": [])"), "collision", "must be an object, got array []"},
@@ -1239,10 +1239,16 @@ TEST(SceneBadFiles, MeshFilesThatAreNoClothFailAtAssembly) {
   EXPECT_THAT(sceneError([&] { assembleScene<double>(meshScene("[4, 0, 4]")); }),
               HasSubstr("mesh-scene: bodies[0].pins[2]: particle 4 is already listed by pins[0]"));
   EXPECT_THAT(sceneError([&] {
-                assembleScene<float>(meshScene(R"([{"particles": [0], "path": {"velocity": [1, 0, 0]}},
-                                                   {"box": {"min": [-99, -99, -99], "max": [99, 99, 99]}}])"));
+                assembleScene<float>(meshScene(R"([{"box": {"min": [-99, -99, -99], "max": [99, 99, 99]},
+                                                    "path": {"velocity": [1, 0, 0]}}, 7])"));
               }),
-              HasSubstr("mesh-scene: bodies[0].pins[1]: particle 0 is both fixed and moved"));
+              HasSubstr("mesh-scene: bodies[0].pins[1]: particle 7 is both fixed by its index and moved"));
+  // A path over a particle of a fixed box takes precedence: particle 0 moves, the rest stay.
+  const AssembledScene<double> precedence = assembleScene<double>(meshScene(
+      R"([{"box": {"min": [-99, -99, -99], "max": [99, 99, 99]}}, {"particles": [0], "path": {"velocity": [1, 0, 0]}}])"));
+  ASSERT_EQ(precedence.options.kinematicPins.size(), 1u);
+  EXPECT_EQ(precedence.options.kinematicPins[0].particles, std::vector<Index>{0});
+  EXPECT_TRUE(precedence.built.model.isPinned(1));
 }
 
 /// What depends on the precision asked for when assembling (the command line's --precision

@@ -96,8 +96,9 @@ std::vector<Index> pinSelection(const PinSpec& pin, Index count, const std::func
 
 /// Two pins of a body that contradict or repeat each other over one particle: a particle
 /// listed by index twice (most likely a typo for another index), moved by two kinematic
-/// pins, or fixed by one pin and moved by another (the simulation would move it and the
-/// fixed pin would be silently ignored).
+/// pins, or named by index in a fixed pin and moved by another (the simulation would move
+/// it and ignore the index). A path over a particle of a fixed pin's box is no conflict:
+/// the path takes precedence (the top edge fixed, a corner of it moved).
 struct PinConflict {
   enum class Kind { ListedTwice, MovedTwice, FixedAndMoved };
   Kind kind;

@@ -69,8 +69,8 @@ std::string PinConflict::what() const {
     case Kind::FixedAndMoved:
       break;
   }
-  return i + " is both fixed and moved (by this pin and " + e +
-         "): a particle is either fixed or follows a path; take it out of one of them";
+  return i + " is both fixed by its index and moved (by this pin and " + e +
+         "): take it out of one of them (a path takes precedence over a fixed box, not over a fixed index)";
 }
 
 std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
@@ -88,7 +88,13 @@ std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
     for (const Index i : pins[q].particles) listed.emplace_back(i, q);
   }
   std::sort(selected.begin(), selected.end());
-  std::optional<size_t> moved, fixed;  // the first pin moving / fixing the current particle
+  std::sort(listed.begin(), listed.end());
+  const auto byIndex = [&listed](Index i, size_t q) {
+    return std::binary_search(listed.begin(), listed.end(), std::make_pair(i, q));
+  };
+  // A path takes precedence over a fixed pin's box (the top edge fixed, one corner of it
+  // moved), not over a fixed pin that names the particle by index.
+  std::optional<size_t> moved, fixed;  // the first pin moving it / fixing it by index
   for (size_t m = 0; m < selected.size(); ++m) {
     const auto [i, q] = selected[m];
     if (m == 0 || i != selected[m - 1].first) moved = fixed = std::nullopt;
@@ -98,13 +104,12 @@ std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
       else if (fixed)
         keep(Kind::FixedAndMoved, q, i, *fixed);
       if (!moved) moved = q;
-    } else {
+    } else if (byIndex(i, q)) {
       if (moved) keep(Kind::FixedAndMoved, q, i, *moved);
       if (!fixed) fixed = q;
     }
   }
   // An index written twice: checked after the contradictions, which say more on a tie.
-  std::sort(listed.begin(), listed.end());
   for (size_t m = 1; m < listed.size(); ++m)
     if (listed[m].first == listed[m - 1].first)
       keep(Kind::ListedTwice, listed[m].second, listed[m].first, listed[m - 1].second);
