@@ -107,7 +107,8 @@ struct PinConflict {
   size_t earlier;  // the earlier pin
   std::string what() const;
 };
-/// `selections[q]` is pins[q]'s (see pinSelection). The first conflict in pin order.
+/// `selections[q]` is pins[q]'s (see pinSelection); only the kinematic pins' are read. The
+/// first conflict in pin order.
 std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
                                        const std::vector<std::vector<Index>>& selections);
 

@@ -81,19 +81,16 @@ std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
     if (!first || pin < first->pin || (pin == first->pin && particle < first->particle))
       first = PinConflict{kind, pin, particle, earlier};
   };
-  // (particle, pin) pairs, sorted: the pins of one particle are adjacent, in pin order.
+  // (particle, pin) pairs, sorted: the pins of one particle are adjacent, in pin order. A
+  // kinematic pin counts with all it selects; a fixed one with the indices it names only,
+  // since a path takes precedence over a fixed pin's box (the top edge fixed, a corner of
+  // it moved) but not over a fixed index.
   std::vector<std::pair<Index, size_t>> selected, listed;
   for (size_t q = 0; q < pins.size(); ++q) {
-    for (const Index i : selections[q]) selected.emplace_back(i, q);
+    for (const Index i : pins[q].path ? selections[q] : pins[q].particles) selected.emplace_back(i, q);
     for (const Index i : pins[q].particles) listed.emplace_back(i, q);
   }
   std::sort(selected.begin(), selected.end());
-  std::sort(listed.begin(), listed.end());
-  const auto byIndex = [&listed](Index i, size_t q) {
-    return std::binary_search(listed.begin(), listed.end(), std::make_pair(i, q));
-  };
-  // A path takes precedence over a fixed pin's box (the top edge fixed, one corner of it
-  // moved), not over a fixed pin that names the particle by index.
   std::optional<size_t> moved, fixed;  // the first pin moving it / fixing it by index
   for (size_t m = 0; m < selected.size(); ++m) {
     const auto [i, q] = selected[m];
@@ -104,12 +101,13 @@ std::optional<PinConflict> pinConflict(const std::vector<PinSpec>& pins,
       else if (fixed)
         keep(Kind::FixedAndMoved, q, i, *fixed);
       if (!moved) moved = q;
-    } else if (byIndex(i, q)) {
+    } else {
       if (moved) keep(Kind::FixedAndMoved, q, i, *moved);
       if (!fixed) fixed = q;
     }
   }
   // An index written twice: checked after the contradictions, which say more on a tie.
+  std::sort(listed.begin(), listed.end());
   for (size_t m = 1; m < listed.size(); ++m)
     if (listed[m].first == listed[m - 1].first)
       keep(Kind::ListedTwice, listed[m].second, listed[m].first, listed[m - 1].second);
@@ -182,7 +180,8 @@ std::vector<PinSpec> readPins(const Reader& r, const Json& body, const std::stri
   }
   if (geometry && geometry->count <= kMaxScannedParticles) {
     std::vector<std::vector<Index>> selections(pins.size());
-    for (size_t q = 0; q < pins.size(); ++q) selections[q] = pinSelection(pins[q], geometry->count, geometry->position);
+    for (size_t q = 0; q < pins.size(); ++q)  // (pinConflict reads the kinematic pins' selections only)
+      if (pins[q].path) selections[q] = pinSelection(pins[q], geometry->count, geometry->position);
     if (const auto conflict = pinConflict(pins, selections))
       r.fail(f + "[" + std::to_string(conflict->pin) + "]", conflict->what());
   }
