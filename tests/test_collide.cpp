@@ -9,6 +9,9 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <string>
+#include <type_traits>
+#include <vector>
 
 #include "collide/contact_solver.hpp"
 #include "support/sanitizers.hpp"
@@ -138,7 +141,63 @@ std::int64_t firedThroughWall(bool continuous, int threads, State<S>* end = null
   const std::int64_t tunnelled = sim.contactReport(&start).tunnelled;
   EXPECT_EQ(tunnelled, sim.contactSolver()->countTunnelled(start.x, sim.state().x, sim.model().inverseMass(), 0.0,
                                                            sim.state().time));
+  // The simulation keeps its start and counts the same, and warns with what to change.
+  EXPECT_EQ(sim.tunnelledCount(), tunnelled);
+  const std::vector<std::string> warnings = sim.warnings();
+  EXPECT_EQ(warnings.size(), tunnelled > 0 ? 1u : 0u);
+  if (tunnelled > 0) {
+    EXPECT_EQ(warnings.front(), std::to_string(tunnelled) +
+                                    " particles went through an obstacle over the run (they ended inside it or beyond "
+                                    "a thin one): the detection is not continuous (collision.continuous false); turn "
+                                    "it on");
+  }
+  // A state given to setState is the new start: nothing went through since.
+  sim.setState(sim.state());
+  EXPECT_EQ(sim.tunnelledCount(), 0);
+  EXPECT_TRUE(sim.warnings().empty());
   return tunnelled;
+}
+
+TYPED_TEST(Collide, AStartInsideAnObstacleIsAWarningUntilANewStart) {
+  using S = TypeParam;
+  // One particle 0.1 m inside a sphere of radius 0.5 (deeper than the thickness), one far out.
+  ModelBuilder<S> b;
+  b.addParticle({0, 0.4, 0}, 0.01, {0, 0, 0});
+  b.addParticle({0, 2, 0}, 0.01, {0, 0, 0});
+  SimulationOptions o;
+  o.integrator = IntegratorKind::SymplecticEuler;
+  o.dt = 1e-3;
+  o.threads = 1;
+  o.gravity = {0, 0, 0};
+  o.collision.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 0.5));
+  const ModelAndState<S> built = b.build();
+  Simulation<S> sim(built, o);
+  const double tolerance = std::is_same_v<S, float> ? 1e-6 : 1e-12;
+  EXPECT_NEAR(sim.startPenetration(), 0.1, tolerance);
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  EXPECT_NE(sim.warnings().front().find(" m inside an obstacle (beyond the collision thickness): the response pushes "
+                                        "it out within a step and can tear the cloth around it; move the body or the "
+                                        "obstacle"),
+            std::string::npos)
+      << sim.warnings().front();
+  // Still inside at the start is the start's warning alone, not a tunnelling too.
+  EXPECT_EQ(sim.tunnelledCount(), 0);
+  // Pushed out, not through: still the one warning about the start.
+  ASSERT_TRUE(sim.run(5).ok()) << sim.status().message();
+  EXPECT_GE(static_cast<double>(sim.state().x(0, 1)), 0.5);
+  EXPECT_EQ(sim.tunnelledCount(), 0);
+  EXPECT_EQ(sim.warnings().size(), 1u);
+  // A checkpoint of the state after it, loaded into a simulation that started inside: the
+  // state loaded is the new start.
+  Simulation<S> other(built, o);
+  EXPECT_GT(other.startPenetration(), 0);
+  other.restore(sim.checkpoint());
+  EXPECT_EQ(other.startPenetration(), 0);
+  EXPECT_TRUE(other.warnings().empty());
+  // Without obstacles there is nothing to compare: no copy of the start, no warning.
+  Simulation<S> free(built, SimulationOptions{});
+  EXPECT_EQ(free.tunnelledCount(), 0);
+  EXPECT_EQ(free.startPenetration(), 0);
 }
 
 TYPED_TEST(Collide, NothingTunnelsThroughAOneTriangleWallAt100MetresPerSecond) {

@@ -681,9 +681,6 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   weft::Simulation<S> sim(std::move(assembled.built), options);
   const std::int64_t steps = weft::sceneStepCount(spec);
   const weft::OutputSpec& output = spec.output;
-  // With obstacles: the start of the run, for counting particles that tunnelled.
-  const std::optional<weft::State<S>> initial =
-      sim.contactSolver() ? std::optional<weft::State<S>>(sim.state()) : std::nullopt;
   const std::string precision = spec.precision == weft::Precision::Float ? "float" : "double";
 
   // A resumed run continues from the checkpoint's step up to `steps` in all (the checkpoint
@@ -729,14 +726,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   // the cloth starts with (its failsafe then runs on it chunk after chunk): said before the run.
   const std::int64_t intersectingAtStart =
       sim.options().selfCollision.enabled && sim.model().triangleCount() > 1 ? sim.selfIntersectionCount() : 0;
-  // Likewise a particle that starts inside an obstacle (deeper than the thickness): the
-  // response pushes it out in one step and can tear the cloth around it.
+  // The warnings known before the first step (a particle that starts inside an obstacle,
+  // deeper than the thickness: the response pushes it out in one step and can tear the
+  // cloth around it), said now rather than after a long run; the end says only the new ones.
   const double penetrationAtStart = sim.contactSolver() ? sim.contactReport().maxPenetration : 0.0;
-  const double thickness = sim.options().collision.thickness;
-  if (penetrationAtStart > thickness)
-    std::cerr << "weft run: note: a particle starts " << penetrationAtStart - thickness
-              << " m inside an obstacle: the response pushes it out within a step and can tear the cloth around it "
-                 "(move the body or the obstacle)\n";
+  const std::vector<std::string> warnedAtStart = sim.warnings();
+  for (const std::string& w : warnedAtStart) std::cerr << "weft run: warning: " << w << "\n";
   if (intersectingAtStart > 0)
     std::cerr << "weft run: note: the cloth starts with " << intersectingAtStart
               << " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
@@ -811,28 +806,26 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       notFiniteMessage(sim.stepCount()) +
       (periodic ? std::string("; frames and checkpoints up to the last finite state") : std::string());
   // What the run did that its status does not stop it for, but that its figures should not
-  // be read without (to standard error, and in the JSON as `warnings`).
-  std::vector<std::string> warnings = sim.warnings();
-  // Over the run, with obstacles: particles that ended beyond a thin obstacle or inside one.
-  const weft::ContactReport contacts = sim.contactSolver() ? sim.contactReport(&*initial) : weft::ContactReport{};
-  if (contacts.tunnelled > 0)
-    warnings.push_back(std::to_string(contacts.tunnelled) + (contacts.tunnelled == 1 ? " particle" : " particles") +
-                       " went through an obstacle over the run (they ended inside it or beyond a thin one): " +
-                       (sim.options().collision.continuous
-                            ? "the continuous detection did not hold them; reduce dt"
-                            : "the detection is not continuous (collision.continuous false); turn it on"));
+  // be read without (to standard error, and in the JSON as `warnings`): Simulation::warnings.
+  const std::vector<std::string> warnings = sim.warnings();
+  // With obstacles: particles that ended beyond a thin obstacle or inside one.
+  weft::ContactReport contacts = sim.contactReport();
+  contacts.tunnelled = sim.tunnelledCount();
   // A step that failed in a run that started with a particle inside an obstacle: the start,
   // not the time step, is the likelier cause (the response pushes such a particle out in
   // one step, which can overstretch the springs around it).
   std::ostringstream failureText;
   if (!status.ok()) {
     failureText << status.message();
-    if (penetrationAtStart > thickness)
-      failureText << "; but the run started with a particle " << penetrationAtStart - thickness
-                  << " m inside an obstacle (the note above), the likelier cause: move the body or the obstacle first";
+    if (sim.startPenetration() > 0)
+      failureText << "; but the run started with a particle " << sim.startPenetration()
+                  << " m inside an obstacle (the warning above), the likelier cause: move the body or the obstacle "
+                     "first";
   }
   const std::string failure = failureText.str();
-  for (const std::string& w : warnings) std::cerr << "weft run: warning: " << w << "\n";
+  for (const std::string& w : warnings)
+    if (std::find(warnedAtStart.begin(), warnedAtStart.end(), w) == warnedAtStart.end())
+      std::cerr << "weft run: warning: " << w << "\n";
   const std::string stoppedUnwritable = "stopped after step " + std::to_string(sim.stepCount()) +
                                         ": its frame cannot be written (" + unwritable +
                                         "); the frames before it are written";

@@ -40,7 +40,7 @@ std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>& start, const V
     bool tunnelled = false;
     for (const Obstacle& o : options_.obstacles) {
       V nn;
-      if (distance(o, b, nn) < 0) tunnelled = true;  // ended inside
+      if (distance(o, b, nn) < 0 && distance(o, a, nn) >= 0) tunnelled = true;  // ended inside, started outside
       if (o.kind != ObstacleKind::Box) continue;
       // Thinnest axis of the box: opposite sides along it, within the other two extents.
       const double ex[3] = {o.halfExtents.x, o.halfExtents.y, o.halfExtents.z};
@@ -56,8 +56,9 @@ std::int64_t ContactSolver<S>::countTunnelled(const Vec3Array<S>& start, const V
     for (size_t m = 0; m < model_->meshes().size() && !tunnelled; ++m) {
       const MeshObstacle& mo = options_.meshes[m];
       const V bb = toBody(mo, b, t1);
-      if (model_->meshes()[m].closed)
-        tunnelled = windingNumber(model_->meshes()[m], bb) > 0.5;  // ended inside
+      if (model_->meshes()[m].closed)  // ended inside, started outside
+        tunnelled = windingNumber(model_->meshes()[m], bb) > 0.5 &&
+                    windingNumber(model_->meshes()[m], toBody(mo, a, t0)) <= 0.5;
       else  // the straight path from start to end goes through the sheet
         tunnelled = meshImpact(model_->meshes()[m], toBody(mo, a, t0), bb, 0.0, 1e-9 * options_.thickness) < 1 &&
                     meshDistance(model_->meshes()[m], bb, options_.thickness) > 0.5 * options_.thickness &&

@@ -80,7 +80,8 @@ class ContactSolver {
   /// Deepest penetration (thickness - distance, >= 0) in state x at time t (serial).
   double penetration(const Vec3Array<S>& x, const ScalarArray<S>& w, double t) const;
   /// Free particles that tunnelled between `start` (time t0) and `end` (time t1): ended
-  /// inside an analytic obstacle or a closed mesh, crossed a box along its thinnest axis,
+  /// inside an analytic obstacle or a closed mesh they started outside of (one that started
+  /// inside is the start's problem, not a tunnelling), crossed a box along its thinnest axis,
   /// or whose straight path from start to end crosses an open mesh (a wall). Serial; for
   /// reports at the end of a run.
   std::int64_t countTunnelled(const Vec3Array<S>& start, const Vec3Array<S>& end, const ScalarArray<S>& w, double t0,

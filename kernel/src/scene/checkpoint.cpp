@@ -212,6 +212,9 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
     if (self_) self_->loadCarry(in);
     in.section("END ");
     if (in.remaining() != sizeof(std::uint64_t)) in.fail(std::to_string(in.remaining() - 8) + " bytes too many");
+    // What the warnings compare the run with: the state loaded (not when putting back the
+    // state before a refused load, whose start stays as it was).
+    if (!rollingBack_) recordStart();
   } catch (...) {
     // (Once only: should the state before loading not load back, nothing more can be
     // tried, and its error goes up rather than another attempt.)

@@ -116,6 +116,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     if (c.continuous && c.corners && !c.meshes.empty()) triangles = model_->triangles();
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
                                                    options_.collisionModel, std::move(triangles));
+    recordStart();
   }
   if (options_.collision.any() || options_.selfCollision.enabled) {
     backupX_.resize(model_->particleCount(), 3);
@@ -191,6 +192,24 @@ void Simulation<S>::setState(const State<S>& state) {
   state_ = state;
   status_ = StepStatus{};
   integrator_->reset();
+  recordStart();
+}
+
+template <class S>
+void Simulation<S>::recordStart() {
+  if (!contacts_) return;  // (also while the constructor sets the first state: it records after)
+  startX_ = state_.x;
+  startTime_ = state_.time;
+  const double t = state_.time - clockStart_;
+  startPenetration_ =
+      std::max(0.0, contacts_->penetration(state_.x, model_->inverseMass(), t) - options_.collision.thickness);
+}
+
+template <class S>
+std::int64_t Simulation<S>::tunnelledCount() const {
+  if (!contacts_) return 0;
+  return contacts_->countTunnelled(startX_, state_.x, model_->inverseMass(), startTime_ - clockStart_,
+                                   state_.time - clockStart_);
 }
 
 template <class S>
@@ -476,6 +495,19 @@ bool Simulation<S>::stateFinite() const {
 template <class S>
 std::vector<std::string> Simulation<S>::warnings() const {
   std::vector<std::string> out;
+  if (startPenetration_ > 0) {
+    std::ostringstream w;
+    w << "a particle started " << startPenetration_
+      << " m inside an obstacle (beyond the collision thickness): the response pushes it out within a step and "
+         "can tear the cloth around it; move the body or the obstacle";
+    out.push_back(w.str());
+  }
+  if (const std::int64_t tunnelled = tunnelledCount(); tunnelled > 0)
+    out.push_back(std::to_string(tunnelled) + (tunnelled == 1 ? " particle" : " particles") +
+                  " went through an obstacle over the run (they ended inside it or beyond a thin one): " +
+                  (options_.collision.continuous
+                       ? "the continuous detection did not hold them; reduce dt"
+                       : "the detection is not continuous (collision.continuous false); turn it on"));
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
     const RigidStats& t = rigid_->totalStats();
     const auto body = [&](Index b) {

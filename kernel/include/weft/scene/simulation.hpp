@@ -114,10 +114,26 @@ class Simulation {
   bool stateFinite() const;
   /// What the steps so far did that does not stop them but that their results should not
   /// be read without, one line each for people (allocates; call after a run, not per step).
-  /// Today: rigid bodies let into each other deeper than RigidStats::kDeepShare of the
-  /// thinner piece's inner radius (RigidStats::deepestShare), naming them, the depth, the
-  /// step and what to change. Empty when there is nothing to say.
+  /// Today:
+  /// - a free particle that started inside an obstacle, deeper than the collision
+  ///   thickness (the response pushes it out within a step, which can tear the cloth
+  ///   around it), with the depth;
+  /// - free particles that went through an obstacle since the start (tunnelledCount()),
+  ///   with what to change;
+  /// - rigid bodies let into each other deeper than RigidStats::kDeepShare of the thinner
+  ///   piece's inner radius (RigidStats::deepestShare), naming them, the depth, the step and
+  ///   what to change.
+  /// "The start" is the state the simulation was built with, or the last one given to
+  /// setState() or load()/restore(). Empty when there is nothing to say.
   std::vector<std::string> warnings() const;
+  /// Free particles that went through an obstacle between the start (as for warnings())
+  /// and now: contactReport(&start).tunnelled, with the start kept by the simulation (its
+  /// positions, only when there are obstacles). A particle that went through a solid
+  /// obstacle and out of it is not counted (the two states are compared, not the steps).
+  std::int64_t tunnelledCount() const;
+  /// The deepest a free particle was inside an obstacle at the start, beyond the collision
+  /// thickness (m; 0 when none was, or without obstacles).
+  double startPenetration() const { return startPenetration_; }
   /// Replaces the state (same particle count) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
@@ -228,6 +244,12 @@ class Simulation {
   Vec3Array<S> trackVelocity_;        // (tracks x 3) velocities before the step, restored on failure
   std::vector<KinematicPath> paths_;  // with normalised axes
   double clockStart_ = 0;             // simulation time of the initial state
+  // The start the warnings compare the run with (with obstacles only): positions, time,
+  // and how deep beyond the thickness a particle was inside an obstacle.
+  Vec3Array<S> startX_;
+  double startTime_ = 0;
+  double startPenetration_ = 0;
+  void recordStart();
   double kinematicSeconds_ = 0;
   // Collision (null without obstacles) and its findings.
   std::unique_ptr<ContactSolver<S>> contacts_;
