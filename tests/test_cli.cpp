@@ -669,7 +669,7 @@ TEST(Cli, SceneSettingsTheRunDoesNotReadAreNamed) {
   std::filesystem::remove_all(dir);
 }
 
-// Self-collision cannot undo an intersection a cloth starts with: the run says so before it
+// Self-collision cannot undo an intersection a cloth starts with: the run warns before it
 // starts, and the summary counts the pairs at the start beside those at the end.
 TEST(Cli, ClothThatStartsIntersectingIsNamed) {
   const std::string path = ::testing::TempDir() + "weft_cli_crossing.json";
@@ -679,9 +679,14 @@ TEST(Cli, ClothThatStartsIntersectingIsNamed) {
      "row_axis": [0.7071, 0, 0.7071], "column_axis": [-0.7071, 0, 0.7071]}]})";
   const CliRun r = weft("run " + path, true);
   EXPECT_EQ(r.exitCode, 0) << r.out;
-  EXPECT_NE(r.out.find("weft run: note: the cloth starts with "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("weft run: warning: the cloth started with "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ok, with 1 warning"), std::string::npos) << r.out;
   const nlohmann::json j = runJson("run " + path);
   EXPECT_GT(j["intersecting_pairs_at_start"].get<int>(), 0);
+  ASSERT_EQ(j["warnings"].size(), 1u) << j.dump();
+  EXPECT_EQ(j["warnings"][0], "the cloth started with " + std::to_string(j["intersecting_pairs_at_start"].get<int>()) +
+                                  " pairs of triangles intersecting: self-collision keeps cloth from passing through "
+                                  "itself and cannot undo an intersection it starts with; move the cloths apart");
   EXPECT_EQ(runJson("run two-cloths --steps 1")["intersecting_pairs_at_start"], 0);
   std::filesystem::remove(path);
 }

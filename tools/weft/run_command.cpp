@@ -722,20 +722,15 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     frames.emplace(output, sim.model(), spec.name, steps);
     if (o.resume) checkResumedFrames(output, sim.stepCount());
   }
-  // Self-collision keeps cloth from passing through itself; it cannot undo an intersection
-  // the cloth starts with (its failsafe then runs on it chunk after chunk): said before the run.
-  const std::int64_t intersectingAtStart =
-      sim.options().selfCollision.enabled && sim.model().triangleCount() > 1 ? sim.selfIntersectionCount() : 0;
-  // The warnings known before the first step (a particle that starts inside an obstacle,
-  // deeper than the thickness: the response pushes it out in one step and can tear the
-  // cloth around it), said now rather than after a long run; the end says only the new ones.
+  const std::int64_t intersectingAtStart = sim.startIntersectionCount();
+  // The warnings known before the first step, said now rather than after a long run (the
+  // end says only the new ones): a particle that starts inside an obstacle, deeper than the
+  // thickness (the response pushes it out in one step and can tear the cloth around it); a
+  // cloth that starts intersecting itself (self-collision keeps cloth from passing through
+  // itself and cannot undo an intersection it starts with).
   const double penetrationAtStart = sim.contactSolver() ? sim.contactReport().maxPenetration : 0.0;
   const std::vector<std::string> warnedAtStart = sim.warnings();
   for (const std::string& w : warnedAtStart) std::cerr << "weft run: warning: " << w << "\n";
-  if (intersectingAtStart > 0)
-    std::cerr << "weft run: note: the cloth starts with " << intersectingAtStart
-              << " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
-                 "cannot undo an intersection it starts with (move the cloths apart)\n";
   // A first checkpoint before any step: a path that cannot be written fails now, not after
   // the run's work.
   if (o.checkpoint) sim.save(*o.checkpoint);

@@ -116,7 +116,6 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     if (c.continuous && c.corners && !c.meshes.empty()) triangles = model_->triangles();
     contacts_ = std::make_unique<ContactSolver<S>>(options_.collision, model_->particleCount(), std::move(edges),
                                                    options_.collisionModel, std::move(triangles));
-    recordStart();
   }
   if (options_.collision.any() || options_.selfCollision.enabled) {
     backupX_.resize(model_->particleCount(), 3);
@@ -138,6 +137,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
       stepStartV_.resize(model_->particleCount(), 3);
     }
   }
+  recordStart();
 }
 
 template <class S>
@@ -197,12 +197,16 @@ void Simulation<S>::setState(const State<S>& state) {
 
 template <class S>
 void Simulation<S>::recordStart() {
-  if (!contacts_) return;  // (also while the constructor sets the first state: it records after)
-  startX_ = state_.x;
-  startTime_ = state_.time;
-  const double t = state_.time - clockStart_;
-  startPenetration_ =
-      std::max(0.0, contacts_->penetration(state_.x, model_->inverseMass(), t) - options_.collision.thickness);
+  // (While the constructor sets the first state there is neither yet: it records after.)
+  if (contacts_) {
+    startX_ = state_.x;
+    startTime_ = state_.time;
+    const double t = state_.time - clockStart_;
+    startPenetration_ =
+        std::max(0.0, contacts_->penetration(state_.x, model_->inverseMass(), t) - options_.collision.thickness);
+  }
+  if (self_) startIntersections_ = model_->triangleCount() > 1 ? selfIntersectionCount() : 0;
+  startStep_ = stepCount_;
 }
 
 template <class S>
@@ -501,6 +505,30 @@ std::vector<std::string> Simulation<S>::warnings() const {
       << " m inside an obstacle (beyond the collision thickness): the response pushes it out within a step and "
          "can tear the cloth around it; move the body or the obstacle";
     out.push_back(w.str());
+  }
+  if (startIntersections_ > 0)
+    out.push_back("the cloth started with " + std::to_string(startIntersections_) +
+                  " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
+                  "cannot undo an intersection it starts with; move the cloths apart");
+  if (self_ && model_->triangleCount() > 1) {
+    // (No step since the start: the state is the start's, and so is the count.)
+    const std::int64_t now = stepCount_ == startStep_ ? startIntersections_ : selfIntersectionCount();
+    if (now > startIntersections_) {
+      std::ostringstream w;
+      w << now << " pairs of triangles intersect now, " << startIntersections_
+        << " at the start: the cloth passed through itself although self-collision was on; ";
+      if (totalSelf_.unresolved > 0 || !paths_.empty())
+        w << "the pass moves only free particles, so pinned ones that a path moves (or that hold the cloth where it "
+             "is pushed) go through it"
+          << (totalSelf_.unresolved > 0 ? " (" + std::to_string(totalSelf_.unresolved) + " pairs it could not stop)"
+                                        : std::string())
+          << ": change the pins or the path; if that is not the case, reduce dt (now " << options_.dt
+          << " s), and please report the scene";
+      else
+        w << "its failsafe stops every pair that comes too close, so this is not expected: reduce dt (now "
+          << options_.dt << " s), and please report the scene";
+      out.push_back(w.str());
+    }
   }
   if (const std::int64_t tunnelled = tunnelledCount(); tunnelled > 0)
     out.push_back(std::to_string(tunnelled) + (tunnelled == 1 ? " particle" : " particles") +

@@ -120,11 +120,16 @@ class Simulation {
   ///   around it), with the depth;
   /// - free particles that went through an obstacle since the start (tunnelledCount()),
   ///   with what to change;
+  /// - with self-collision on: a cloth that started with pairs of triangles intersecting
+  ///   (startIntersectionCount(); the pass cannot undo them), and one that has more now
+  ///   than at the start (selfIntersectionCount(): it passed through itself), with what to
+  ///   change;
   /// - rigid bodies let into each other deeper than RigidStats::kDeepShare of the thinner
   ///   piece's inner radius (RigidStats::deepestShare), naming them, the depth, the step and
   ///   what to change.
   /// "The start" is the state the simulation was built with, or the last one given to
-  /// setState() or load()/restore(). Empty when there is nothing to say.
+  /// setState() or load()/restore(). Empty when there is nothing to say. With self-collision
+  /// on it runs the exact intersection check (a BVH built for the call).
   std::vector<std::string> warnings() const;
   /// Free particles that went through an obstacle between the start (as for warnings())
   /// and now: contactReport(&start).tunnelled, with the start kept by the simulation (its
@@ -134,6 +139,9 @@ class Simulation {
   /// The deepest a free particle was inside an obstacle at the start, beyond the collision
   /// thickness (m; 0 when none was, or without obstacles).
   double startPenetration() const { return startPenetration_; }
+  /// With self-collision on, the pairs of triangles intersecting at the start (as for
+  /// warnings(); selfIntersectionCount() then); 0 with it off.
+  std::int64_t startIntersectionCount() const { return startIntersections_; }
   /// Replaces the state (same particle count) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
@@ -249,6 +257,8 @@ class Simulation {
   Vec3Array<S> startX_;
   double startTime_ = 0;
   double startPenetration_ = 0;
+  std::int64_t startIntersections_ = 0;  // with self-collision on
+  Index startStep_ = 0;                  // stepCount_ at the start (only steps change the state since)
   void recordStart();
   double kinematicSeconds_ = 0;
   // Collision (null without obstacles) and its findings.
