@@ -198,15 +198,24 @@ void Simulation<S>::setState(const State<S>& state) {
 template <class S>
 void Simulation<S>::recordStart() {
   // (While the constructor sets the first state there is neither yet: it records after.)
-  if (contacts_) {
+  if (contacts_ || self_) {
     startX_ = state_.x;
     startTime_ = state_.time;
+  }
+  if (contacts_) {
     const double t = state_.time - clockStart_;
     startPenetration_ =
         std::max(0.0, contacts_->penetration(state_.x, model_->inverseMass(), t) - options_.collision.thickness);
   }
-  if (self_) startIntersections_ = model_->triangleCount() > 1 ? selfIntersectionCount() : 0;
+  startIntersections_ = -1;  // (counted when asked for)
   startStep_ = stepCount_;
+}
+
+template <class S>
+std::int64_t Simulation<S>::startIntersectionCount() const {
+  if (!self_ || model_->triangleCount() < 2) return 0;
+  if (startIntersections_ < 0) startIntersections_ = countSelfIntersections(*model_, startX_, *executor_);
+  return startIntersections_;
 }
 
 template <class S>
@@ -506,16 +515,17 @@ std::vector<std::string> Simulation<S>::warnings() const {
          "can tear the cloth around it; move the body or the obstacle";
     out.push_back(w.str());
   }
-  if (startIntersections_ > 0)
-    out.push_back("the cloth started with " + std::to_string(startIntersections_) +
+  const std::int64_t started = startIntersectionCount();
+  if (started > 0)
+    out.push_back("the cloth started with " + std::to_string(started) +
                   " pairs of triangles intersecting: self-collision keeps cloth from passing through itself and "
                   "cannot undo an intersection it starts with; move the cloths apart");
   if (self_ && model_->triangleCount() > 1) {
     // (No step since the start: the state is the start's, and so is the count.)
-    const std::int64_t now = stepCount_ == startStep_ ? startIntersections_ : selfIntersectionCount();
-    if (now > startIntersections_) {
+    const std::int64_t now = stepCount_ == startStep_ ? started : selfIntersectionCount();
+    if (now > started) {
       std::ostringstream w;
-      w << now << " pairs of triangles intersect now, " << startIntersections_
+      w << now << " pairs of triangles intersect now, " << started
         << " at the start: the cloth passed through itself although self-collision was on; ";
       if (totalSelf_.unresolved > 0 || !paths_.empty())
         w << "the pass moves only free particles, so pinned ones that a path moves (or that hold the cloth where it "

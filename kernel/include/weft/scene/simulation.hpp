@@ -140,8 +140,11 @@ class Simulation {
   /// thickness (m; 0 when none was, or without obstacles).
   double startPenetration() const { return startPenetration_; }
   /// With self-collision on, the pairs of triangles intersecting at the start (as for
-  /// warnings(); selfIntersectionCount() then); 0 with it off.
-  std::int64_t startIntersectionCount() const { return startIntersections_; }
+  /// warnings(); what selfIntersectionCount() said then); 0 with it off. The simulation keeps
+  /// the start's positions and counts on the first call after a new start, not when it
+  /// starts (a construction does not pay for a check nobody reads); the count is kept, so
+  /// like the steps this is for one thread at a time.
+  std::int64_t startIntersectionCount() const;
   /// Replaces the state (same particle count) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
@@ -252,13 +255,14 @@ class Simulation {
   Vec3Array<S> trackVelocity_;        // (tracks x 3) velocities before the step, restored on failure
   std::vector<KinematicPath> paths_;  // with normalised axes
   double clockStart_ = 0;             // simulation time of the initial state
-  // The start the warnings compare the run with (with obstacles only): positions, time,
-  // and how deep beyond the thickness a particle was inside an obstacle.
+  // The start the warnings compare the run with (with obstacles or self-collision only):
+  // positions, time, how deep beyond the thickness a particle was inside an obstacle, and
+  // the pairs of triangles intersecting (-1 until counted).
   Vec3Array<S> startX_;
   double startTime_ = 0;
   double startPenetration_ = 0;
-  std::int64_t startIntersections_ = 0;  // with self-collision on
-  Index startStep_ = 0;                  // stepCount_ at the start (only steps change the state since)
+  mutable std::int64_t startIntersections_ = -1;
+  Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
   double kinematicSeconds_ = 0;
   // Collision (null without obstacles) and its findings.
