@@ -202,13 +202,18 @@ void Simulation<S>::recordStart() {
     startX_ = state_.x;
     startTime_ = state_.time;
   }
-  if (contacts_) {
-    const double t = state_.time - clockStart_;
-    startPenetration_ =
-        std::max(0.0, contacts_->penetration(state_.x, model_->inverseMass(), t) - options_.collision.thickness);
-  }
-  startIntersections_ = -1;  // (counted when asked for)
+  startPenetration_ = -1;  // (both measured when asked for)
+  startIntersections_ = -1;
   startStep_ = stepCount_;
+}
+
+template <class S>
+double Simulation<S>::startPenetration() const {
+  if (!contacts_) return 0;
+  if (startPenetration_ < 0)
+    startPenetration_ = std::max(0.0, contacts_->penetration(startX_, model_->inverseMass(), startTime_ - clockStart_) -
+                                          options_.collision.thickness);
+  return startPenetration_;
 }
 
 template <class S>
@@ -508,9 +513,9 @@ bool Simulation<S>::stateFinite() const {
 template <class S>
 std::vector<std::string> Simulation<S>::warnings() const {
   std::vector<std::string> out;
-  if (startPenetration_ > 0) {
+  if (const double deep = startPenetration(); deep > 0) {
     std::ostringstream w;
-    w << "a particle started " << startPenetration_
+    w << "a particle started " << deep
       << " m inside an obstacle (beyond the collision thickness): the response pushes it out within a step and "
          "can tear the cloth around it; move the body or the obstacle";
     out.push_back(w.str());

@@ -137,8 +137,10 @@ class Simulation {
   /// obstacle and out of it is not counted (the two states are compared, not the steps).
   std::int64_t tunnelledCount() const;
   /// The deepest a free particle was inside an obstacle at the start, beyond the collision
-  /// thickness (m; 0 when none was, or without obstacles).
-  double startPenetration() const { return startPenetration_; }
+  /// thickness (m; 0 when none was, or without obstacles). Measured on the first call after
+  /// a new start, from the start's positions (as startIntersectionCount(), and likewise
+  /// for one thread at a time).
+  double startPenetration() const;
   /// With self-collision on, the pairs of triangles intersecting at the start (as for
   /// warnings(); what selfIntersectionCount() said then); 0 with it off. The simulation keeps
   /// the start's positions and counts on the first call after a new start, not when it
@@ -256,11 +258,11 @@ class Simulation {
   std::vector<KinematicPath> paths_;  // with normalised axes
   double clockStart_ = 0;             // simulation time of the initial state
   // The start the warnings compare the run with (with obstacles or self-collision only):
-  // positions, time, how deep beyond the thickness a particle was inside an obstacle, and
-  // the pairs of triangles intersecting (-1 until counted).
+  // positions and time; how deep beyond the thickness a particle was inside an obstacle,
+  // and the pairs of triangles intersecting (both -1 until measured: only when asked for).
   Vec3Array<S> startX_;
   double startTime_ = 0;
-  double startPenetration_ = 0;
+  mutable double startPenetration_ = -1;
   mutable std::int64_t startIntersections_ = -1;
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
