@@ -975,6 +975,7 @@ TEST(SelfCollisionScenes, AClothDrivenThroughItselfByItsPinsIsAWarning) {
   for (Index i = 25; i < 50; ++i) down.particles.push_back(i);
   o.kinematicPins.push_back(down);
   Simulation<double> sim(b.build(), o);
+  const State<double> initial = sim.state();
   EXPECT_EQ(sim.startIntersectionCount(), 0);
   EXPECT_TRUE(sim.warnings().empty());
   ASSERT_TRUE(sim.run(200).ok()) << sim.status().message();  // 0.2 m down: across the lower cloth
@@ -1000,6 +1001,19 @@ TEST(SelfCollisionScenes, AClothDrivenThroughItselfByItsPinsIsAWarning) {
   ASSERT_EQ(sim.warnings().size(), 1u);
   EXPECT_EQ(sim.warnings()[0].rfind("the cloth started with " + std::to_string(now) + " pairs of triangles", 0), 0u)
       << sim.warnings()[0];
+  // The count is kept until the state changes: another state at the same step count (given,
+  // or restored from a checkpoint) is counted afresh.
+  const std::string intersecting = sim.checkpoint();
+  EXPECT_EQ(sim.selfIntersectionCount(), now);
+  sim.setState(initial);
+  EXPECT_EQ(sim.selfIntersectionCount(), 0);
+  EXPECT_TRUE(sim.warnings().empty());
+  sim.restore(intersecting);
+  EXPECT_EQ(sim.selfIntersectionCount(), now);
+  EXPECT_EQ(sim.startIntersectionCount(), now);
+  sim.setState(initial);
+  ASSERT_TRUE(sim.run(200).ok());  // the same steps again: the same count after them
+  EXPECT_EQ(sim.selfIntersectionCount(), now);
 }
 
 TEST(SelfCollisionScenes, OneAndTwoThreadsGiveTheSameBits) {

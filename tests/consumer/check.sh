@@ -7,7 +7,8 @@
 # 3. find_package(weft COMPONENTS io);
 # 4. the kernel program through pkg-config, no CMake, and every installed header compiled on
 #    its own (self-contained, reaching no internal header: those are not installed);
-# 5. with --subdirectory, add_subdirectory() of this source tree (compiles weft again).
+# 5. with --subdirectory, add_subdirectory() of this source tree (compiles weft again, as a
+#    Debug build: weft's assertions on, and without optimisation a third less compile time).
 # --subdirectory-only runs step 5 alone (CI: the suite's Package.InstalledConsumersBuildAndRun
 # has run steps 1-4 on the Release build already).
 set -euo pipefail
@@ -19,7 +20,7 @@ jobs="${WEFT_JOBS:-2}"
 
 add_subdirectory_check() {
   echo "-- add_subdirectory(weft)"
-  cmake -S "$here" -B "$work/sub" -DWEFT_SOURCE="$source_dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake -S "$here" -B "$work/sub" -DWEFT_SOURCE="$source_dir" -DCMAKE_BUILD_TYPE=Debug >/dev/null
   cmake --build "$work/sub" -j"$jobs" >/dev/null
   "$work/sub/consumer"
   "$work/sub/consumer_io"

@@ -183,6 +183,7 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
   // Simulation directly, and should a section still be malformed (a file made to pass the
   // checks above) the Simulation is put back as it was.
   const std::string before = checkpoint();
+  nowIntersections_ = -1;  // (the state is about to change, even if the load is refused)
   try {
     in.section("SIMU");
     transfer(in, *this);

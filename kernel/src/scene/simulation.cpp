@@ -167,7 +167,12 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
 
 template <class S>
 std::int64_t Simulation<S>::selfIntersectionCount() const {
-  return countSelfIntersections(*model_, state_.x, *executor_);
+  // (Only steps, setState and restore change the state; the latter two forget the count.)
+  if (nowIntersectionsStep_ != stepCount_ || nowIntersections_ < 0) {
+    nowIntersections_ = countSelfIntersections(*model_, state_.x, *executor_);
+    nowIntersectionsStep_ = stepCount_;
+  }
+  return nowIntersections_;
 }
 
 template <class S>
@@ -204,6 +209,7 @@ void Simulation<S>::recordStart() {
   }
   startPenetration_ = -1;  // (both measured when asked for)
   startIntersections_ = -1;
+  nowIntersections_ = -1;
   startStep_ = stepCount_;
 }
 

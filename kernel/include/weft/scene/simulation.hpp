@@ -182,7 +182,9 @@ class Simulation {
   const SelfCollisionStats& totalSelfCollision() const { return totalSelf_; }
   /// Pairs of triangles sharing no particle that intersect in the current state: the exact
   /// check of weft/collide/self_collision.hpp, for any model (self-collision on or off).
-  /// Builds a BVH: for reports and tests, not for every step of a fast loop.
+  /// Builds a BVH: for reports and tests, not for every step of a fast loop. The count is
+  /// kept until the state changes (a step, setState(), load()/restore()), so asking again,
+  /// or warnings() after it, costs nothing; like the steps, for one thread at a time.
   std::int64_t selfIntersectionCount() const;
   [[deprecated("use selfIntersectionCount()")]] std::int64_t selfIntersections() const {
     return selfIntersectionCount();
@@ -266,6 +268,10 @@ class Simulation {
   mutable std::int64_t startIntersections_ = -1;
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
+  // selfIntersectionCount() of the state after step nowIntersectionsStep_ (-1: none kept;
+  // a new start or a restore forgets it).
+  mutable std::int64_t nowIntersections_ = -1;
+  mutable Index nowIntersectionsStep_ = -1;
   double kinematicSeconds_ = 0;
   // Collision (null without obstacles) and its findings.
   std::unique_ptr<ContactSolver<S>> contacts_;
