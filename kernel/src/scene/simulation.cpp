@@ -167,7 +167,7 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
 
 template <class S>
 std::int64_t Simulation<S>::selfIntersectionCount() const {
-  // (Only steps, setState and restore change the state; the latter two forget the count.)
+  // (Only steps, setState and restore change the state, and each forgets the count.)
   if (nowIntersectionsStep_ != stepCount_ || nowIntersections_ < 0) {
     nowIntersections_ = countSelfIntersections(*model_, state_.x, *executor_);
     nowIntersectionsStep_ = stepCount_;
@@ -314,6 +314,10 @@ void Simulation<S>::acceptChunk(double h) {
 template <class S>
 StepStatus Simulation<S>::step() {
   if (!status_.ok()) return status_;
+  // (A step that fails leaves the state as it was, but for pinned particles on a path, which
+  // it puts on it, where they already are unless setState() moved them off: the count kept
+  // is forgotten whatever the step's outcome.)
+  nowIntersections_ = -1;
   if (!rigid_) return stepParticles();
   // Bodies first: a failure of either part leaves both where they were.
   StepStatus bodies;

@@ -269,7 +269,7 @@ class Simulation {
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
   // selfIntersectionCount() of the state after step nowIntersectionsStep_ (-1: none kept;
-  // a new start or a restore forgets it).
+  // a step, a new start or a restore forgets it).
   mutable std::int64_t nowIntersections_ = -1;
   mutable Index nowIntersectionsStep_ = -1;
   double kinematicSeconds_ = 0;
