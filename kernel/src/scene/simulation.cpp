@@ -168,10 +168,7 @@ ContactReport Simulation<S>::contactReport(const State<S>* start) const {
 template <class S>
 std::int64_t Simulation<S>::selfIntersectionCount() const {
   // (Only steps, setState and restore change the state, and each forgets the count.)
-  if (nowIntersectionsStep_ != stepCount_ || nowIntersections_ < 0) {
-    nowIntersections_ = countSelfIntersections(*model_, state_.x, *executor_);
-    nowIntersectionsStep_ = stepCount_;
-  }
+  if (nowIntersections_ < 0) nowIntersections_ = countSelfIntersections(*model_, state_.x, *executor_);
   return nowIntersections_;
 }
 

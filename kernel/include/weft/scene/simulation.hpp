@@ -268,10 +268,9 @@ class Simulation {
   mutable std::int64_t startIntersections_ = -1;
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
-  // selfIntersectionCount() of the state after step nowIntersectionsStep_ (-1: none kept;
-  // a step, a new start or a restore forgets it).
+  // selfIntersectionCount() of the state now (-1: not counted since a step, a new start or
+  // a restore, each of which forgets it).
   mutable std::int64_t nowIntersections_ = -1;
-  mutable Index nowIntersectionsStep_ = -1;
   double kinematicSeconds_ = 0;
   // Collision (null without obstacles) and its findings.
   std::unique_ptr<ContactSolver<S>> contacts_;
