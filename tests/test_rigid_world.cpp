@@ -519,6 +519,71 @@ TEST(ParticleCoupling, HammockCatchesTheBallAndBothComeToRest) {
   }
 }
 
+TEST(ParticleCoupling, ABallTheHammockCannotCarryIsNamedWhenItGoesThrough) {
+  // 20 kg in the 16^2 hammock: the ball stretches the cloth, pushes its particles apart and
+  // drops between them. The run says so, the same on 1 and 2 threads; a checkpoint keeps it.
+  const Index n = 16;
+  SimulationOptions options;
+  options.integrator = IntegratorKind::SymplecticEuler;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
+  options.effects.drag = kHammockDrag;
+  options.rigid = hammockBall();
+  options.rigid.bodies[0].mass = 20;
+  const int steps = static_cast<int>(std::lround(1.0 / options.dt));
+  std::vector<std::uint64_t> ends;
+  for (const int threads : {1, 2}) {
+    options.threads = threads;
+    Simulation<double> sim(hammockModel(n), options);
+    std::int64_t touched = 0;
+    for (int k = 0; k < steps; ++k) {
+      ASSERT_TRUE(sim.step().ok()) << sim.status().message();
+      touched += sim.lastParticleBodyContacts().contacts;
+    }
+    EXPECT_GT(touched, 0) << "the ball never touched the cloth";
+    EXPECT_LT(sim.rigidWorld()->state().x[0].y(), 0.0) << "the ball should have fallen through";
+    const ParticleBodyStats& total = sim.totalParticleBodyContacts();
+    EXPECT_EQ(total.crossings, 1);
+    EXPECT_EQ(total.firstCrossingBody, 0);
+    EXPECT_GT(total.firstCrossingTime, 0.3);  // it falls 0.5 m before it reaches the cloth
+    EXPECT_LT(total.firstCrossingTime, 1.0);
+    const std::vector<std::string> warnings = sim.warnings();
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_THAT(warnings[0], HasSubstr("rigid body 0 (ball) went through the cloth"));
+    // A checkpoint carries the run's count.
+    Simulation<double> again(hammockModel(n), options);
+    again.restore(sim.checkpoint());
+    EXPECT_EQ(again.totalParticleBodyContacts().crossings, 1);
+    EXPECT_EQ(again.totalParticleBodyContacts().firstCrossingTime, total.firstCrossingTime);
+    ends.push_back(stateHash(sim.state()) ^ rigidStateHash(sim.rigidWorld()->state()));
+  }
+  EXPECT_EQ(ends[0], ends[1]);
+}
+
+TEST(ParticleCoupling, ABallThatSlipsBetweenParticlesIsCountedWithoutTouchingOne) {
+  // No gravity: a 2 cm ball at 5 m/s down through the middle cell of a 4 x 4 cloth (cells
+  // of 1/3 m around the origin, off its diagonal) touches no particle; the same ball beside
+  // the cloth crosses nothing.
+  for (const double x : {0.05, 2.0}) {
+    SimulationOptions options;
+    options.integrator = IntegratorKind::SymplecticEuler;
+    options.dt = 1e-3;
+    options.threads = 2;
+    options.gravity = {0, 0, 0};
+    options.rigid = hammockBall();
+    options.rigid.bodies[0].shapes[0].radius = 0.02;
+    options.rigid.bodies[0].position = {x, 0.8, -0.08};
+    options.rigid.bodies[0].velocity = {0, -5, 0};
+    Simulation<double> sim(hammockModel(4), options);
+    std::int64_t touched = 0;
+    for (int k = 0; k < 120; ++k) {  // 0.6 m down: from 0.3 m above the cloth to 0.3 m below
+      ASSERT_TRUE(sim.step().ok()) << sim.status().message();
+      touched += sim.lastParticleBodyContacts().contacts;
+    }
+    EXPECT_EQ(touched, 0) << "x = " << x;
+    EXPECT_EQ(sim.totalParticleBodyContacts().crossings, x < 1 ? 1 : 0) << "x = " << x;
+  }
+}
+
 TEST(ParticleCoupling, MomentumIsExchangedNotMadeOrLost) {
   // A free cloth (no pins, no gravity) flies at a free ball at 3 m/s: the total linear
   // momentum of particles and ball stays what it was through the impact.

@@ -945,6 +945,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["body_contacts"] = last.contacts;
       j["body_touching_pairs"] = last.touchingPairs;
       j["particle_body_contacts"] = sim.lastParticleBodyContacts().contacts;  // particles touching bodies, last step
+      // Moving bodies' centres through a cloth triangle over the run (the cloth did not hold them)
+      j["bodies_through_cloth"] = sim.totalParticleBodyContacts().crossings;
       j["support_contacts"] = last.supportContacts;  // held particles carrying bodies, last step
       j["body_max_penetration"] = last.maxPenetration;
       j["body_max_penetration_run"] = total.maxPenetration;  // deepest over the run

@@ -9,6 +9,7 @@
 
 #include "weft/core/parallel.hpp"
 #include "weft/core/types.hpp"
+#include "weft/model/model.hpp"
 #include "weft/rigid/particle_coupling.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
@@ -19,8 +20,9 @@ class ParticleBodyContacts {
  public:
   static constexpr int kContactsPerParticle = 2;
 
-  /// thickness: particle radius, m (> 0).
-  ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness);
+  /// thickness: particle radius, m (> 0); triangleCount: the most cloth triangles
+  /// countCrossings is given.
+  ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness, Index triangleCount = 0);
 
   /// Resolves the particles' candidate (x1, v1) of the step x0 -> x1 against the bodies
   /// of `world` (which has stepped over the same interval), and applies the reactions to
@@ -34,6 +36,16 @@ class ParticleBodyContacts {
   /// Returns how many.
   Index collectSupports(const Vec3Array<S>& x, const Vec3Array<S>& v, const ScalarArray<S>& w, RigidWorld& world,
                         const Executor& exec);
+
+  /// After resolve: the moving (dynamic or kinematic) bodies of `world` whose centre of
+  /// mass went through a triangle of the cloth over the step (x0 -> x1, the bodies from
+  /// world.stepStart() to world.state(), both moving linearly): an odd number of passes
+  /// through the triangle's inside, found exactly on the cubic of coplanarity. Bodies in
+  /// order, each tested against blocks of triangles in parallel (a yes or no a block: the
+  /// same answer for any thread count); the first such body in *first (-1 if none).
+  /// Nothing allocated.
+  std::int64_t countCrossings(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Triangles& triangles,
+                              const RigidWorld& world, const Executor& exec, Index* first);
 
   double thickness() const { return thickness_; }
 
@@ -50,6 +62,10 @@ class ParticleBodyContacts {
   std::vector<SupportContact> supportSlots_;      // particleCount x kContactsPerParticle
   std::vector<int> supportCount_;                 // per particle
   std::vector<SupportContact> supports_;          // the step's list, in particle order
+  static constexpr Index kCrossingParticles = 2048, kCrossingTriangles = 2048;  // countCrossings' blocks
+  std::vector<std::uint8_t> side_;           // per particle: countCrossings' box test
+  std::vector<std::uint8_t> sharedBits_;     // per block of particles: the bits all share
+  std::vector<std::uint8_t> triangleFlags_;  // per block of triangles: a crossing found
 };
 
 extern template class ParticleBodyContacts<float>;

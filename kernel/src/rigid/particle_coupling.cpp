@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -32,6 +33,63 @@ double distanceBound(const RigidPiece& piece, const ConvexHull* hull, const Vec3
   return d;
 }
 
+double det3(const Vec3& u, const Vec3& v, const Vec3& w) { return u.dot(v.cross(w)); }
+
+/// Whether the point p (p0 -> p1) passes through the inside of the triangle (a, b, c),
+/// every point moving linearly over t in [0, 1], an odd number of times. The point is in
+/// the triangle's plane where f(t) = det(a - p, b - p, c - p) changes sign; f is a cubic,
+/// monotone between the roots of its derivative, so each sign change is one root, found
+/// by bisection; at each, the point's barycentric coordinates in the triangle say whether
+/// it is inside (edges included, so a body through an edge is seen by both triangles).
+bool passesThrough(const Vec3& p0, const Vec3& p1, const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1,
+                   const Vec3& c0, const Vec3& c1) {
+  const Vec3 A = a0 - p0, B = b0 - p0, C = c0 - p0;
+  const Vec3 dA = (a1 - p1) - A, dB = (b1 - p1) - B, dC = (c1 - p1) - C;
+  const auto f = [&](double t) { return det3(A + t * dA, B + t * dB, C + t * dC); };
+  // f(t) = k3 t^3 + k2 t^2 + k1 t + k0 (det is linear in each argument).
+  const double k3 = det3(dA, dB, dC);
+  const double k2 = det3(dA, dB, C) + det3(dA, B, dC) + det3(A, dB, dC);
+  const double k1 = det3(dA, B, C) + det3(A, dB, C) + det3(A, B, dC);
+  // The ends of the monotone pieces: 0, the roots of f' = 3 k3 t^2 + 2 k2 t + k1 in (0, 1), 1.
+  double ends[4] = {0, 1, 1, 1};
+  int count = 1;
+  const double qa = 3 * k3, qb = 2 * k2, qc = k1;
+  if (qa != 0) {
+    const double disc = qb * qb - 4 * qa * qc;
+    if (disc > 0) {
+      const double s = std::sqrt(disc);
+      double r0 = (-qb - s) / (2 * qa), r1 = (-qb + s) / (2 * qa);
+      if (r0 > r1) std::swap(r0, r1);
+      for (const double r : {r0, r1})
+        if (r > 0 && r < 1) ends[count++] = r;
+    }
+  } else if (qb != 0) {
+    const double r = -qc / qb;
+    if (r > 0 && r < 1) ends[count++] = r;
+  }
+  ends[count] = 1;
+  int inside = 0;
+  for (int k = 0; k < count; ++k) {
+    double lo = ends[k], hi = ends[k + 1];
+    const bool loNegative = f(lo) < 0;
+    if (loNegative == (f(hi) < 0)) continue;  // no root in this piece
+    for (int it = 0; it < 64 && hi - lo > 1e-15; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      ((f(mid) < 0) == loNegative ? lo : hi) = mid;
+    }
+    const double t = 0.5 * (lo + hi);
+    const Vec3 p = p0 + t * (p1 - p0), a = a0 + t * (a1 - a0);
+    const Vec3 e1 = (b0 + t * (b1 - b0)) - a, e2 = (c0 + t * (c1 - c0)) - a, q = p - a;
+    const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), q1 = q.dot(e1), q2 = q.dot(e2);
+    const double den = d11 * d22 - d12 * d12;
+    if (!(den > 1e-12 * d11 * d22)) continue;  // degenerate (or not finite) at that moment
+    const double v = (d22 * q1 - d12 * q2) / den, w = (d11 * q2 - d12 * q1) / den;
+    constexpr double kEdge = 1e-9;
+    if (v >= -kEdge && w >= -kEdge && v + w <= 1 + kEdge) ++inside;
+  }
+  return inside % 2 == 1;
+}
+
 template <class S>
 Vec3 row(const Vec3Array<S>& x, Index i) {
   return {static_cast<double>(x(i, 0)), static_cast<double>(x(i, 1)), static_cast<double>(x(i, 2))};
@@ -47,11 +105,13 @@ void setRow(Vec3Array<S>& x, Index i, const Vec3& v) {
 }  // namespace
 
 template <class S>
-ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness)
+ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness,
+                                              Index triangleCount)
     : thickness_(thickness) {
   if (!(std::isfinite(thickness) && thickness > 0))
     detail::rejectField("ParticleBodyContacts: thickness", thickness, "finite and > 0 (m)");
   if (particleCount < 0) throw std::invalid_argument("ParticleBodyContacts: particleCount must be >= 0");
+  if (triangleCount < 0) throw std::invalid_argument("ParticleBodyContacts: triangleCount must be >= 0");
   records_.resize(static_cast<std::size_t>(particleCount) * kContactsPerParticle);
   const std::size_t pieces = static_cast<std::size_t>(bodies.pieceCount());
   start_.resize(pieces);
@@ -61,6 +121,9 @@ ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index pa
   supportSlots_.resize(records_.size());
   supportCount_.resize(static_cast<std::size_t>(particleCount));
   supports_.reserve(records_.size());
+  side_.resize(static_cast<std::size_t>(particleCount));
+  sharedBits_.resize(static_cast<std::size_t>(Executor::blockCount(particleCount, kCrossingParticles)));
+  triangleFlags_.resize(static_cast<std::size_t>(Executor::blockCount(triangleCount, kCrossingTriangles)));
 }
 
 template <class S>
@@ -307,6 +370,93 @@ ParticleBodyStats ParticleBodyContacts<S>::resolve(const Vec3Array<S>& x0, Vec3A
     world.applyImpulse(m.pieces[r.piece].body, -r.impulse, r.point);
   }
   return stats;
+}
+
+template <class S>
+std::int64_t ParticleBodyContacts<S>::countCrossings(const Vec3Array<S>& x0, const Vec3Array<S>& x1,
+                                                     const Triangles& triangles, const RigidWorld& world,
+                                                     const Executor& exec, Index* first) {
+  const RigidModel& m = world.model();
+  const RigidState& before = world.stepStart();
+  const RigidState& after = world.state();
+  const Index count = triangles.count(), n = static_cast<Index>(x0.rows());
+  if (Executor::blockCount(count, kCrossingTriangles) > static_cast<Index>(triangleFlags_.size()) ||
+      n > static_cast<Index>(side_.size()))
+    throw std::logic_error("ParticleBodyContacts::countCrossings: more triangles or particles than constructed for");
+  const Index* ta = triangles.a.data();
+  const Index* tb = triangles.b.data();
+  const Index* tc = triangles.c.data();
+  const S* X0[3] = {x0.data(), x0.data() + x0.rows(), x0.data() + 2 * x0.rows()};
+  const S* X1[3] = {x1.data(), x1.data() + x1.rows(), x1.data() + 2 * x1.rows()};
+  std::uint8_t* side = side_.data();
+  std::uint8_t* sharedBits = sharedBits_.data();
+  std::uint8_t* flags = triangleFlags_.data();
+  std::int64_t crossed = 0;
+  *first = -1;
+  for (Index body = 0; body < m.bodyCount(); ++body) {
+    if (m.motion[body] == BodyMotion::Static) continue;
+    const Vec3 p0 = before.x[body], p1 = after.x[body];
+    const Vec3 lo = p0.cwiseMin(p1), hi = p0.cwiseMax(p1);
+    // The segment's box in S, rounded outwards (the test stays conservative in float).
+    const auto down = [](double d) {
+      const S r = static_cast<S>(d);
+      return static_cast<double>(r) > d ? std::nextafter(r, -std::numeric_limits<S>::infinity()) : r;
+    };
+    const auto up = [](double d) {
+      const S r = static_cast<S>(d);
+      return static_cast<double>(r) < d ? std::nextafter(r, std::numeric_limits<S>::infinity()) : r;
+    };
+    const S lx = down(lo[0]), ly = down(lo[1]), lz = down(lo[2]);
+    const S hx = up(hi[0]), hy = up(hi[1]), hz = up(hi[2]);
+    // Where each particle's path lies against the centre's segment, axis by axis: bit 2c
+    // wholly beyond it, bit 2c + 1 wholly short of it. A triangle whose corners share a bit
+    // is apart from the segment over the whole step; a bit all particles share puts the
+    // segment outside the cloth's box. (Not finite, the tests are all false and the
+    // cubic's signs all agree: no crossing.)
+    exec.parallelForBlocks(n, kCrossingParticles, [&](Index block, Index begin, Index end) {
+      const S* __restrict ax = X0[0];
+      const S* __restrict ay = X0[1];
+      const S* __restrict az = X0[2];
+      const S* __restrict bx = X1[0];
+      const S* __restrict by = X1[1];
+      const S* __restrict bz = X1[2];
+      // (Bounds copied in: the byte stores may alias anything, so captured ones would be
+      // loaded again for every particle, and the loop would not vectorise.)
+      const S lX = lx, lY = ly, lZ = lz, hX = hx, hY = hy, hZ = hz;
+      std::uint8_t* __restrict out = side;
+      std::uint8_t shared = 0xff;
+      for (Index i = begin; i < end; ++i) {
+        const int bits = (ax[i] > hX && bx[i] > hX ? 1 : 0) | (ax[i] < lX && bx[i] < lX ? 2 : 0) |
+                         (ay[i] > hY && by[i] > hY ? 4 : 0) | (ay[i] < lY && by[i] < lY ? 8 : 0) |
+                         (az[i] > hZ && bz[i] > hZ ? 16 : 0) | (az[i] < lZ && bz[i] < lZ ? 32 : 0);
+        out[i] = static_cast<std::uint8_t>(bits);
+        shared &= static_cast<std::uint8_t>(bits);
+      }
+      sharedBits[block] = shared;
+    });
+    std::uint8_t shared = 0xff;
+    for (Index k = 0; k < Executor::blockCount(n, kCrossingParticles); ++k) shared &= sharedBits[k];
+    if (shared != 0) continue;
+    // Each block of triangles: the exact test on those whose corners share no bit.
+    exec.parallelForBlocks(count, kCrossingTriangles, [&](Index block, Index begin, Index end) {
+      const auto at = [](const S* const* X, Index i) {
+        return Vec3(static_cast<double>(X[0][i]), static_cast<double>(X[1][i]), static_cast<double>(X[2][i]));
+      };
+      bool through = false;
+      for (Index t = begin; t < end && !through; ++t)
+        if ((side[ta[t]] & side[tb[t]] & side[tc[t]]) == 0)
+          through = passesThrough(p0, p1, at(X0, ta[t]), at(X1, ta[t]), at(X0, tb[t]), at(X1, tb[t]), at(X0, tc[t]),
+                                  at(X1, tc[t]));
+      flags[block] = through ? 1 : 0;
+    });
+    bool through = false;
+    for (Index k = 0; k < Executor::blockCount(count, kCrossingTriangles); ++k) through = through || flags[k] != 0;
+    if (through) {  // one a body and step
+      ++crossed;
+      if (*first < 0) *first = body;
+    }
+  }
+  return crossed;
 }
 
 template class ParticleBodyContacts<float>;

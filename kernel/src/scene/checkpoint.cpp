@@ -98,6 +98,7 @@ void Simulation<S>::transfer(Archive& a, Self& self) {
   a.field(self.lastSelf_, "the last step's self-collisions");
   a.field(self.totalSelf_, "the run's self-collisions");
   a.field(self.lastCoupling_, "the last step's particle-body contacts");
+  a.field(self.totalCoupling_, "the run's particle-body contacts");
   a.field(self.clockStart_, "clock start");
 }
 

@@ -131,7 +131,7 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
     rigid_ = std::make_unique<RigidWorld>(options_.rigid, Eigen::Vector3d(g.x, g.y, g.z));
     if (options_.rigid.particleContacts && model_->particleCount() > 0) {
       coupling_ = std::make_unique<ParticleBodyContacts<S>>(rigid_->model(), model_->particleCount(),
-                                                            options_.rigid.particleThickness);
+                                                            options_.rigid.particleThickness, model_->triangleCount());
       rigid_->reserveSupports(model_->particleCount() * ParticleBodyContacts<S>::kContactsPerParticle);
       stepStartX_.resize(model_->particleCount(), 3);
       stepStartV_.resize(model_->particleCount(), 3);
@@ -370,6 +370,21 @@ StepStatus Simulation<S>::step() {
       status_.time = stepStart;
       return status_;
     }
+    // Bodies the cloth did not hold (a count for the report, not a failure: the step is
+    // what the coupling makes of it, and the body has passed).
+    if (model_->triangleCount() > 0) {
+      const auto crossingStart =
+          options_.profileEffects ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      executor_->run([&] {
+        lastCoupling_.crossings = coupling_->countCrossings(stepStartX_, state_.x, model_->triangles(), *rigid_,
+                                                            *executor_, &lastCoupling_.firstCrossingBody);
+      });
+      lastCoupling_.firstCrossingTime = stepStart;
+      if (options_.profileEffects)
+        rigidSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - crossingStart).count() *
+                         executor_->threadCount();
+    }
+    totalCoupling_ += lastCoupling_;
   }
   return particles;
 }
@@ -558,6 +573,17 @@ std::vector<std::string> Simulation<S>::warnings() const {
                   (options_.collision.continuous
                        ? "the continuous detection did not hold them; reduce dt"
                        : "the detection is not continuous (collision.continuous false); turn it on"));
+  if (totalCoupling_.crossings > 0) {
+    const Index b = totalCoupling_.firstCrossingBody;
+    std::ostringstream w;
+    w << "rigid body " << b << " (" << rigid_->model().names[static_cast<size_t>(b)]
+      << ") went through the cloth in the step starting at t = " << totalCoupling_.firstCrossingTime << " s ("
+      << totalCoupling_.crossings << (totalCoupling_.crossings == 1 ? " crossing" : " crossings")
+      << " of a body's centre through a cloth triangle over the run): the cloth could not carry it. Particles keep "
+         "out of bodies, not the triangles between them, so the body pushed the particles apart and passed between "
+         "them. Make the body lighter or the cloth stiffer, or its particles closer together than the body is wide";
+    out.push_back(w.str());
+  }
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
     const RigidStats& t = rigid_->totalStats();
     const auto body = [&](Index b) {

@@ -57,6 +57,26 @@ namespace weft {
 struct ParticleBodyStats {
   std::int64_t contacts = 0;  // particle-piece contacts resolved
   double impulse = 0;         // sum of |J| over them, N s
+  /// Moving bodies whose centre of mass went through a cloth triangle (the cloth did not
+  /// hold them: the coupling keeps particles out of bodies, not the triangles between
+  /// them, so a body the cloth cannot carry pushes its particles apart and passes between
+  /// them). Per step: how many bodies; over a run (Simulation::totalParticleBodyContacts):
+  /// how many times, with the first one's body and the start of its step.
+  std::int64_t crossings = 0;
+  Index firstCrossingBody = -1;
+  double firstCrossingTime = 0;  // s
+
+  /// Adds a later step's figures (the first crossing stays the earliest).
+  ParticleBodyStats& operator+=(const ParticleBodyStats& later) {
+    contacts += later.contacts;
+    impulse += later.impulse;
+    if (crossings == 0 && later.crossings > 0) {
+      firstCrossingBody = later.firstCrossingBody;
+      firstCrossingTime = later.firstCrossingTime;
+    }
+    crossings += later.crossings;
+    return *this;
+  }
 };
 
 /// The coupling pass itself (ParticleBodyContacts) is internal to weft:

@@ -203,8 +203,11 @@ class Simulation {
   /// and resting stacks want the digits.
   const RigidWorld* rigidWorld() const { return rigid_.get(); }
   RigidWorld* rigidWorld() { return rigid_.get(); }
-  /// Contacts between particles and rigid bodies in the last step (zeros without both).
+  /// Contacts between particles and rigid bodies in the last step and summed over all
+  /// steps (zeros without both), with the moving bodies that went through a cloth
+  /// (`crossings`: the cloth did not hold them; warnings() says so).
   const ParticleBodyStats& lastParticleBodyContacts() const { return lastCoupling_; }
+  const ParticleBodyStats& totalParticleBodyContacts() const { return totalCoupling_; }
   /// Time spent in each effect (zeros unless SimulationOptions::profileEffects).
   SceneEffectTimes effectTimes() const;
 
@@ -232,7 +235,7 @@ class Simulation {
   /// The format version of checkpoint files this build writes and reads.
   // 2: the self-collision section; 3: its pushes; 4: implicit Euler's multigrid step (auto) and
   // StepWork::multigridSolves
-  static constexpr std::uint32_t kCheckpointFormat = 4;
+  static constexpr std::uint32_t kCheckpointFormat = 5;
 
  private:
   std::shared_ptr<const Model<S>> model_;
@@ -300,7 +303,7 @@ class Simulation {
   // after the first fails (the chunks before it were taken).
   Vec3Array<S> backupX_, backupV_;
   bool rollingBack_ = false;  // restore() is putting back the state before a refused load
-  ParticleBodyStats lastCoupling_;
+  ParticleBodyStats lastCoupling_, totalCoupling_;
   /// Checkpoints: the fields of the "SIMU" section in order, written by an ArchiveWriter
   /// (Self const) and read by an ArchiveReader with the same code (checkpoint.cpp).
   template <class Archive, class Self>
