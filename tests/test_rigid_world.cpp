@@ -584,6 +584,32 @@ TEST(ParticleCoupling, ABallThatSlipsBetweenParticlesIsCountedWithoutTouchingOne
   }
 }
 
+TEST(ParticleCoupling, AKinematicBodyDrivenThroughTheClothIsNamedAsSuch) {
+  // The hammock's ball on a path straight down at 1 m/s through the cloth: the cloth cannot
+  // stop it (nothing stops a kinematic body); it stretches and the ball comes through.
+  const Index n = 16;
+  SimulationOptions options;
+  options.integrator = IntegratorKind::SymplecticEuler;
+  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
+  options.threads = 2;
+  options.effects.drag = kHammockDrag;
+  options.rigid = hammockBall();
+  RigidBodyDesc& ball = options.rigid.bodies[0];
+  ball.motion = BodyMotion::Kinematic;
+  ball.mass = 0;
+  ball.position = {0, 0.7, 0};
+  ball.path.velocity = {0, -1, 0};
+  Simulation<double> sim(hammockModel(n), options);
+  const int steps = static_cast<int>(std::lround(1.5 / options.dt));
+  for (int k = 0; k < steps && sim.totalParticleBodyContacts().crossings == 0; ++k)
+    ASSERT_TRUE(sim.step().ok()) << sim.status().message();
+  EXPECT_EQ(sim.totalParticleBodyContacts().crossings, 1);
+  EXPECT_LT(sim.rigidWorld()->state().x[0].y(), 0.5);  // below the pins' plane
+  const std::vector<std::string> warnings = sim.warnings();
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_THAT(warnings[0], HasSubstr("its path took it through the cloth"));
+}
+
 TEST(ParticleCoupling, MomentumIsExchangedNotMadeOrLost) {
   // A free cloth (no pins, no gravity) flies at a free ball at 3 m/s: the total linear
   // momentum of particles and ball stays what it was through the impact.

@@ -579,9 +579,15 @@ std::vector<std::string> Simulation<S>::warnings() const {
     w << "rigid body " << b << " (" << rigid_->model().names[static_cast<size_t>(b)]
       << ") went through the cloth in the step starting at t = " << totalCoupling_.firstCrossingTime << " s ("
       << totalCoupling_.crossings << (totalCoupling_.crossings == 1 ? " crossing" : " crossings")
-      << " of a body's centre through a cloth triangle over the run): the cloth could not carry it. Particles keep "
-         "out of bodies, not the triangles between them, so the body pushed the particles apart and passed between "
-         "them. Make the body lighter or the cloth stiffer, or its particles closer together than the body is wide";
+      << " of a body's centre through a cloth triangle over the run): ";
+    if (rigid_->model().motion[static_cast<size_t>(b)] == BodyMotion::Kinematic)
+      w << "its path took it through the cloth, which could not get out of its way. Particles keep out of bodies, not "
+           "the triangles between them, and pinned ones are not moved at all. Keep the path clear of pinned "
+           "particles, slow it down, or put the particles closer together than the body is wide";
+    else
+      w << "the cloth could not carry it. Particles keep out of bodies, not the triangles between them, so the body "
+           "pushed the particles apart and passed between them. Make the body lighter or the cloth stiffer, or its "
+           "particles closer together than the body is wide";
     out.push_back(w.str());
   }
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
