@@ -234,7 +234,8 @@ class Simulation {
   void restore(std::string_view bytes, const std::string& source = "memory");
   /// The format version of checkpoint files this build writes and reads.
   // 2: the self-collision section; 3: its pushes; 4: implicit Euler's multigrid step (auto) and
-  // StepWork::multigridSolves
+  // StepWork::multigridSolves; 5: the run's particle-body contacts, with the bodies that went
+  // through a cloth
   static constexpr std::uint32_t kCheckpointFormat = 5;
 
  private:
