@@ -490,14 +490,20 @@ ModelAndState<double> hammockModel(Index n) {
   return builder.build();
 }
 
-TEST(ParticleCoupling, HammockCatchesTheBallAndBothComeToRest) {
-  const Index n = 16;
+/// The built-in hammock's settings for an n^2 cloth, with symplectic Euler at the flag's step.
+SimulationOptions hammockOptions(Index n, int threads) {
   SimulationOptions options;
   options.integrator = IntegratorKind::SymplecticEuler;
   options.dt = defaultTimeStep(BuiltinScene::Flag, n);
-  options.threads = 1;
+  options.threads = threads;
   options.effects.drag = kHammockDrag;
   options.rigid = hammockBall();
+  return options;
+}
+
+TEST(ParticleCoupling, HammockCatchesTheBallAndBothComeToRest) {
+  const Index n = 16;
+  const SimulationOptions options = hammockOptions(n, 1);
   Simulation<double> sim(hammockModel(n), options);
   const double r = 0.12, thickness = options.rigid.particleThickness;
   const int steps = static_cast<int>(std::lround(6.0 / options.dt));
@@ -523,11 +529,7 @@ TEST(ParticleCoupling, ABallTheHammockCannotCarryIsNamedWhenItGoesThrough) {
   // 20 kg in the 16^2 hammock: the ball stretches the cloth, pushes its particles apart and
   // drops between them. The run says so, the same on 1 and 2 threads; a checkpoint keeps it.
   const Index n = 16;
-  SimulationOptions options;
-  options.integrator = IntegratorKind::SymplecticEuler;
-  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
-  options.effects.drag = kHammockDrag;
-  options.rigid = hammockBall();
+  SimulationOptions options = hammockOptions(n, 1);
   options.rigid.bodies[0].mass = 20;
   const int steps = static_cast<int>(std::lround(1.0 / options.dt));
   std::vector<std::uint64_t> ends;
@@ -588,12 +590,7 @@ TEST(ParticleCoupling, AKinematicBodyDrivenThroughTheClothIsNamedAsSuch) {
   // The hammock's ball on a path straight down at 1 m/s through the cloth: the cloth cannot
   // stop it (nothing stops a kinematic body); it stretches and the ball comes through.
   const Index n = 16;
-  SimulationOptions options;
-  options.integrator = IntegratorKind::SymplecticEuler;
-  options.dt = defaultTimeStep(BuiltinScene::Flag, n);
-  options.threads = 2;
-  options.effects.drag = kHammockDrag;
-  options.rigid = hammockBall();
+  SimulationOptions options = hammockOptions(n, 2);
   RigidBodyDesc& ball = options.rigid.bodies[0];
   ball.motion = BodyMotion::Kinematic;
   ball.mass = 0;

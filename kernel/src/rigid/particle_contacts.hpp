@@ -40,7 +40,7 @@ class ParticleBodyContacts {
   /// After resolve: the moving (dynamic or kinematic) bodies of `world` whose centre of
   /// mass went through a triangle of the cloth over the step (x0 -> x1, the bodies from
   /// world.stepStart() to world.state(), both moving linearly): an odd number of passes
-  /// through the triangle's inside, found exactly on the cubic of coplanarity. Bodies in
+  /// through the triangle's inside, at the roots of the cubic of coplanarity. Bodies in
   /// order, each tested against blocks of triangles in parallel (a yes or no a block: the
   /// same answer for any thread count); the first such body in *first (-1 if none).
   /// Nothing allocated.
