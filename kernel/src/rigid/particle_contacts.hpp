@@ -37,12 +37,11 @@ class ParticleBodyContacts {
   Index collectSupports(const Vec3Array<S>& x, const Vec3Array<S>& v, const ScalarArray<S>& w, RigidWorld& world,
                         const Executor& exec);
 
-  /// After resolve: the moving (dynamic or kinematic) bodies of `world` whose centre of
-  /// mass went through a triangle of the cloth over the step (x0 -> x1, the bodies from
-  /// world.stepStart() to world.state(), both moving linearly): an odd number of passes
-  /// through the triangle's inside, at the roots of the cubic of coplanarity. Bodies in
-  /// order, each tested against blocks of triangles in parallel (a yes or no a block: the
-  /// same answer for any thread count); the first such body in *first (-1 if none).
+  /// After resolve over the same step (it keeps the box of the particles' paths): the moving (dynamic or kinematic)
+  /// bodies of `world` whose centre of mass went through a triangle of the cloth over the step (x0 -> x1, the bodies
+  /// from world.stepStart() to world.state(), both moving linearly): an odd number of passes through the triangle's
+  /// inside, at the roots of the cubic of coplanarity. Bodies in order, each tested against blocks of triangles in
+  /// parallel (a yes or no a block: the same answer for any thread count); the first such body in *first (-1 if none).
   /// Nothing allocated.
   std::int64_t countCrossings(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Triangles& triangles,
                               const RigidWorld& world, const Executor& exec, Index* first);
@@ -62,10 +61,12 @@ class ParticleBodyContacts {
   std::vector<SupportContact> supportSlots_;      // particleCount x kContactsPerParticle
   std::vector<int> supportCount_;                 // per particle
   std::vector<SupportContact> supports_;          // the step's list, in particle order
+  static constexpr Index kResolveBlock = 256;     // resolve's blocks
   static constexpr Index kCrossingParticles = 2048, kCrossingTriangles = 2048;  // countCrossings' blocks
-  std::vector<std::uint8_t> side_;           // per particle: countCrossings' box test
-  std::vector<std::uint8_t> sharedBits_;     // per block of particles: the bits all share
-  std::vector<std::uint8_t> triangleFlags_;  // per block of triangles: a crossing found
+  std::vector<Eigen::Vector3d> pathLo_, pathHi_;  // per block of resolve: the box of its particles' paths
+  std::vector<std::uint8_t> side_;                // per particle: countCrossings' box test
+  std::vector<std::uint8_t> sharedBits_;          // per block of particles: the bits all share
+  std::vector<std::uint8_t> triangleFlags_;       // per block of triangles: a crossing found
 };
 
 extern template class ParticleBodyContacts<float>;

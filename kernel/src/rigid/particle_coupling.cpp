@@ -122,6 +122,8 @@ ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index pa
   supportCount_.resize(static_cast<std::size_t>(particleCount));
   supports_.reserve(records_.size());
   side_.resize(static_cast<std::size_t>(particleCount));
+  pathLo_.resize(static_cast<std::size_t>(Executor::blockCount(particleCount, kResolveBlock)));
+  pathHi_.resize(pathLo_.size());
   sharedBits_.resize(static_cast<std::size_t>(Executor::blockCount(particleCount, kCrossingParticles)));
   triangleFlags_.resize(static_cast<std::size_t>(Executor::blockCount(triangleCount, kCrossingTriangles)));
 }
@@ -261,14 +263,23 @@ ParticleBodyStats ParticleBodyContacts<S>::resolve(const Vec3Array<S>& x0, Vec3A
   };
 
   const Index n = static_cast<Index>(x1.rows());
-  exec.parallelFor(n, 256, [&](Index begin, Index end) {
+  // Each block also keeps the box of its particles' paths, from x0 to where this pass leaves
+  // them (countCrossings starts from it).
+  exec.parallelForBlocks(n, kResolveBlock, [&](Index block, Index begin, Index end) {
+    Vec3 pathLo = Vec3::Constant(std::numeric_limits<double>::infinity()), pathHi = -pathLo;
     for (Index i = begin; i < end; ++i) {
       Record* slots = &records_[static_cast<std::size_t>(i) * kContactsPerParticle];
       for (int k = 0; k < kContactsPerParticle; ++k) slots[k].piece = -1;
       const double wi = static_cast<double>(w[i]);
-      if (wi <= 0) continue;
       const Vec3 a = row(x0, i);
       Vec3 b = row(x1, i);
+      pathLo = pathLo.cwiseMin(a);
+      pathHi = pathHi.cwiseMax(a);
+      if (wi <= 0) {
+        pathLo = pathLo.cwiseMin(b);
+        pathHi = pathHi.cwiseMax(b);
+        continue;
+      }
       const Vec3 segLo = a.cwiseMin(b), segHi = a.cwiseMax(b);
       int used = 0;
       for (Index p = 0; p < pieces && used < kContactsPerParticle; ++p) {
@@ -356,7 +367,11 @@ ParticleBodyStats ParticleBodyContacts<S>::resolve(const Vec3Array<S>& x0, Vec3A
         slots[used].point = xc;
         ++used;
       }
+      pathLo = pathLo.cwiseMin(b);
+      pathHi = pathHi.cwiseMax(b);
     }
+    pathLo_[static_cast<std::size_t>(block)] = pathLo;
+    pathHi_[static_cast<std::size_t>(block)] = pathHi;
   });
   // The reactions, in particle order: the same sums for any thread count.
   ParticleBodyStats stats;
@@ -393,10 +408,18 @@ std::int64_t ParticleBodyContacts<S>::countCrossings(const Vec3Array<S>& x0, con
   std::uint8_t* flags = triangleFlags_.data();
   std::int64_t crossed = 0;
   *first = -1;
+  // The box of every particle's path over the step (resolve's blocks): a body whose centre
+  // stays outside it crosses nothing, and costs no pass over the particles.
+  Vec3 clothLo = Vec3::Constant(std::numeric_limits<double>::infinity()), clothHi = -clothLo;
+  for (Index k = 0; k < Executor::blockCount(n, kResolveBlock); ++k) {
+    clothLo = clothLo.cwiseMin(pathLo_[static_cast<std::size_t>(k)]);
+    clothHi = clothHi.cwiseMax(pathHi_[static_cast<std::size_t>(k)]);
+  }
   for (Index body = 0; body < m.bodyCount(); ++body) {
     if (m.motion[body] == BodyMotion::Static) continue;
     const Vec3 p0 = before.x[body], p1 = after.x[body];
     const Vec3 lo = p0.cwiseMin(p1), hi = p0.cwiseMax(p1);
+    if ((lo.array() > clothHi.array()).any() || (hi.array() < clothLo.array()).any()) continue;
     // The segment's box in S, rounded outwards (the test stays conservative in float).
     const auto down = [](double d) {
       const S r = static_cast<S>(d);
