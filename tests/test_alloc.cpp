@@ -421,6 +421,31 @@ TEST(RigidAllocation, ClothCarryingBodiesDoesNotAllocate) {
   }
 }
 
+TEST(RigidAllocation, HammockHoldingItsBallDoesNotAllocate) {
+  // The ball resting in the sag, below the pinned corners: inside the box of the cloth, so
+  // every step takes the crossing check's pass over the particles and the triangles.
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(::testing::Message() << threads << " thread(s)");
+    const Index n = 16;
+    ModelBuilder<double> builder;
+    addClothGrid(builder, hammockCloth(n));
+    for (const Index i : hammockPins(n)) builder.pin(i);
+    SimulationOptions options;
+    options.integrator = IntegratorKind::SymplecticEuler;
+    options.dt = defaultTimeStep(BuiltinScene::Flag, n);
+    options.threads = threads;
+    options.effects.drag = 0.03;
+    options.rigid = hammockBall();
+    options.rigid.bodies[0].position.y() = 0.5 + 0.12 + 0.01;  // 1 cm above the cloth
+    Simulation<double> sim(builder.build(), options);
+    ASSERT_TRUE(sim.run(static_cast<Index>(0.8 / options.dt)).ok());  // warm-up: the ball lands and sags
+    ASSERT_LT(sim.rigidWorld()->state().x[0].y(), 0.45) << "the ball should be below the pinned corners";
+    expectTwentyStepsDoNotAllocate(sim);
+    EXPECT_GT(sim.lastParticleBodyContacts().contacts, 0);
+    EXPECT_EQ(sim.totalParticleBodyContacts().crossings, 0);
+  }
+}
+
 TEST(ClockAllocation, AdvancingAndInterpolatingDoNotAllocate) {
   SimulationOptions options;
   options.threads = 2;
