@@ -65,7 +65,6 @@ class ParticleBodyContacts {
   static constexpr Index kCrossingParticles = 2048, kCrossingTriangles = 2048;  // countCrossings' blocks
   std::vector<Eigen::Vector3d> pathLo_, pathHi_;  // per block of resolve: the box of its particles' paths
   std::vector<std::uint8_t> side_;                // per particle: countCrossings' box test
-  std::vector<std::uint8_t> sharedBits_;          // per block of particles: the bits all share
   std::vector<std::uint8_t> triangleFlags_;       // per block of triangles: a crossing found
 };
 

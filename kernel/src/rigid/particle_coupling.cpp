@@ -124,7 +124,6 @@ ParticleBodyContacts<S>::ParticleBodyContacts(const RigidModel& bodies, Index pa
   side_.resize(static_cast<std::size_t>(particleCount));
   pathLo_.resize(static_cast<std::size_t>(Executor::blockCount(particleCount, kResolveBlock)));
   pathHi_.resize(pathLo_.size());
-  sharedBits_.resize(static_cast<std::size_t>(Executor::blockCount(particleCount, kCrossingParticles)));
   triangleFlags_.resize(static_cast<std::size_t>(Executor::blockCount(triangleCount, kCrossingTriangles)));
 }
 
@@ -404,7 +403,6 @@ std::int64_t ParticleBodyContacts<S>::countCrossings(const Vec3Array<S>& x0, con
   const S* X0[3] = {x0.data(), x0.data() + x0.rows(), x0.data() + 2 * x0.rows()};
   const S* X1[3] = {x1.data(), x1.data() + x1.rows(), x1.data() + 2 * x1.rows()};
   std::uint8_t* side = side_.data();
-  std::uint8_t* sharedBits = sharedBits_.data();
   std::uint8_t* flags = triangleFlags_.data();
   std::int64_t crossed = 0;
   *first = -1;
@@ -433,10 +431,9 @@ std::int64_t ParticleBodyContacts<S>::countCrossings(const Vec3Array<S>& x0, con
     const S hx = up(hi[0]), hy = up(hi[1]), hz = up(hi[2]);
     // Where each particle's path lies against the centre's segment, axis by axis: bit 2c
     // wholly beyond it, bit 2c + 1 wholly short of it. A triangle whose corners share a bit
-    // is apart from the segment over the whole step; a bit all particles share puts the
-    // segment outside the cloth's box. (Not finite, the tests are all false and the
-    // cubic's signs all agree: no crossing.)
-    exec.parallelForBlocks(n, kCrossingParticles, [&](Index block, Index begin, Index end) {
+    // is apart from the segment over the whole step. (Not finite, the tests are all false
+    // and the cubic's signs all agree: no crossing.)
+    exec.parallelFor(n, kCrossingParticles, [&](Index begin, Index end) {
       const S* __restrict ax = X0[0];
       const S* __restrict ay = X0[1];
       const S* __restrict az = X0[2];
@@ -447,19 +444,11 @@ std::int64_t ParticleBodyContacts<S>::countCrossings(const Vec3Array<S>& x0, con
       // loaded again for every particle, and the loop would not vectorise.)
       const S lX = lx, lY = ly, lZ = lz, hX = hx, hY = hy, hZ = hz;
       std::uint8_t* __restrict out = side;
-      std::uint8_t shared = 0xff;
-      for (Index i = begin; i < end; ++i) {
-        const int bits = (ax[i] > hX && bx[i] > hX ? 1 : 0) | (ax[i] < lX && bx[i] < lX ? 2 : 0) |
-                         (ay[i] > hY && by[i] > hY ? 4 : 0) | (ay[i] < lY && by[i] < lY ? 8 : 0) |
-                         (az[i] > hZ && bz[i] > hZ ? 16 : 0) | (az[i] < lZ && bz[i] < lZ ? 32 : 0);
-        out[i] = static_cast<std::uint8_t>(bits);
-        shared &= static_cast<std::uint8_t>(bits);
-      }
-      sharedBits[block] = shared;
+      for (Index i = begin; i < end; ++i)
+        out[i] = static_cast<std::uint8_t>((ax[i] > hX && bx[i] > hX ? 1 : 0) | (ax[i] < lX && bx[i] < lX ? 2 : 0) |
+                                           (ay[i] > hY && by[i] > hY ? 4 : 0) | (ay[i] < lY && by[i] < lY ? 8 : 0) |
+                                           (az[i] > hZ && bz[i] > hZ ? 16 : 0) | (az[i] < lZ && bz[i] < lZ ? 32 : 0));
     });
-    std::uint8_t shared = 0xff;
-    for (Index k = 0; k < Executor::blockCount(n, kCrossingParticles); ++k) shared &= sharedBits[k];
-    if (shared != 0) continue;
     // Each block of triangles: the exact test on those whose corners share no bit.
     exec.parallelForBlocks(count, kCrossingTriangles, [&](Index block, Index begin, Index end) {
       const auto at = [](const S* const* X, Index i) {
