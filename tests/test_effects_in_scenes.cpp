@@ -380,6 +380,9 @@ TEST(KinematicPins, BadPinsAreRejectedByName) {
   KinematicPins nanPath{{0}, {}};
   nanPath.path.velocity.y = std::nan("");
   expectRejected(nanPath, "velocity");
+  KinematicPins fastPath{{0}, {}};  // finite, but faster than light
+  fastPath.path.velocity.x = 1e300;
+  expectRejected(fastPath, "path.velocity must be a speed of at most 299792458 m/s (the speed of light), got (1e+300");
   KinematicPins backwards{{0}, {}};
   backwards.path.startTime = 2;
   backwards.path.endTime = 1;

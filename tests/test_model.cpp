@@ -329,7 +329,16 @@ TYPED_TEST(ModelTest, BadParticlesThrow) {
   expectInvalid([&] { b.addParticle({0, kInf, 0}, 1.0); }, "position.y", "inf");
   expectInvalid([&] { b.addParticle({0, 0, -kInf}, 1.0); }, "position.z", "-inf");
   expectInvalid([&] { b.addParticle({0, 0, 0}, 1.0, {0, kNaN, 0}); }, "velocity.y", "nan");
+  // Finite, but faster than light: its kinetic energy overflows (1e300 m/s), or it is simply
+  // not a speed anything the kernel models reaches (each component below c, the speed above).
+  expectInvalid([&] { b.addParticle({0, 0, 0}, 1.0, {1e300, 0, 0}); }, "velocity of particle [0]", "(1e+300, 0, 0)");
+  expectInvalid(
+      [&] {
+        b.addParticle({0, 0, 0}, 1.0, {2.5e8, 2.5e8, 0});
+      },
+      "velocity of particle [0]", "speed of at most 299792458 m/s");
   EXPECT_EQ(b.particleCount(), 0) << "a rejected particle must not be added";
+  EXPECT_NO_THROW(b.addParticle({0, 0, 0}, 1.0, {kMaxSpeed, 0, 0}));
 }
 
 TYPED_TEST(ModelTest, BadSpringsThrow) {

@@ -311,7 +311,39 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   expectInvalid(o, "rigid.bodies[1].kineticFriction must be in [0, staticFriction (0.6)], got 0.9");
   o = stackScene(2);
   o.bodies[1].position.x() = std::nan("");
-  expectInvalid(o, "rigid.bodies[1].position must be finite (m), got (nan, 0.25, 0)");
+  expectInvalid(o,
+                "rigid.bodies[1].position must be finite and within +-1e150 m (the squares of distances between "
+                "bodies must stay finite), got (nan, 0.25, 0)");
+  o = stackScene(2);
+  o.bodies[1].position.y() = -1e200;
+  expectInvalid(o, "rigid.bodies[1].position must be finite and within +-1e150 m");
+  // Finite speeds whose kinetic energy would not be (the solver squares them): faster than
+  // light is refused, for the centre of mass, a kinematic path, and a spinning body's
+  // farthest point (the stack's boxes reach sqrt(3) x 0.25 m from their centres).
+  o = stackScene(2);
+  o.bodies[1].velocity = {1e300, 0, 0};
+  expectInvalid(o,
+                "rigid.bodies[1].velocity must be a speed of at most 299792458 m/s (the speed of light), got "
+                "(1e+300, 0, 0)");
+  o = stackScene(2);
+  o.bodies[1].velocity = {0, 0, kMaxSpeed};
+  EXPECT_NO_THROW(buildRigidModel(o.bodies));
+  o = stackScene(2);
+  o.bodies[1].motion = BodyMotion::Kinematic;
+  o.bodies[1].path.velocity = {0, -3e8, 0};
+  expectInvalid(o, "rigid.bodies[1].path.velocity must be a speed of at most 299792458 m/s");
+  o = stackScene(2);
+  o.bodies[1].angularVelocity = {0, 1e160, 0};  // (|w|^2 I overflows: the step would end in NaN)
+  EXPECT_THAT(message([&] { buildRigidModel(o.bodies); }),
+              AllOf(HasSubstr("rigid.bodies[1].angularVelocity must be at most "),
+                    HasSubstr(" m from its centre of mass, moving at a speed of at most 299792458 m/s"),
+                    HasSubstr("got (0, 1e+160, 0)")));
+  const double reach = buildRigidModel(stackScene(2).bodies)->reach[1];
+  EXPECT_NEAR(reach, std::sqrt(3.0) * 0.25, 1e-12);
+  o.bodies[1].angularVelocity = {0, 0.999 * kMaxSpeed / reach, 0};
+  EXPECT_NO_THROW(buildRigidModel(o.bodies));
+  o.bodies[1].angularVelocity = {0, 1.001 * kMaxSpeed / reach, 0};
+  EXPECT_THROW(buildRigidModel(o.bodies), std::invalid_argument);
   o = stackScene(2);
   o.bodies[1].shapes.clear();
   expectInvalid(o, "rigid.bodies[1].shapes must be a list of at least one convex piece");
@@ -431,8 +463,37 @@ TEST(RigidWorldInput, BadArgumentsAreRefusedAndChangeNothing) {
   bad = before;
   bad.time = nan;
   EXPECT_EQ(message([&] { world.setState(bad); }), "RigidWorld::setState: state.time must be finite (s), got nan");
+  // Finite, but out of the range the kernel takes: as validateRigidOptions says it.
+  bad = before;
+  bad.x[1].z() = 1e200;
+  EXPECT_THAT(message([&] { world.setState(bad); }),
+              HasSubstr("RigidWorld::setState: state.x[1] must be within +-1e150 m"));
+  bad = before;
+  bad.v[1] = Vec3(0, -1e300, 0);
+  EXPECT_EQ(message([&] { world.setState(bad); }),
+            "RigidWorld::setState: state.v[1] must be a speed of at most 299792458 m/s (the speed of light), got (0, "
+            "-1e+300, 0)");
+  bad = before;
+  bad.w[1] = Vec3(1e160, 0, 0);
+  EXPECT_THAT(message([&] { world.setState(bad); }),
+              AllOf(HasSubstr("RigidWorld::setState: state.w[1] must be at most "), HasSubstr("got (1e+160, 0, 0)")));
   same();
   EXPECT_TRUE(world.step(rigidSceneTimeStep(), exec).ok());
+}
+
+// A finite gravity that makes a body's kinetic energy overflow within one step: the step
+// says so (NonFinite, the body named, the state as it was), not a finite state whose
+// energy reads as infinity.
+TEST(RigidWorldInput, AStepWhoseBodyEnergyOverflowsFailsAndSaysSo) {
+  Executor exec(1);
+  RigidWorld world(stackScene(2), Eigen::Vector3d(0, -1e300, 0));
+  const RigidState before = world.state();
+  const StepStatus status = world.step(rigidSceneTimeStep(), exec);
+  ASSERT_EQ(status.code, StepCode::NonFinite);
+  EXPECT_GE(status.body, 1);
+  EXPECT_THAT(status.message(), HasSubstr("has position, velocity or kinetic energy inf"));
+  EXPECT_TRUE(std::isinf(status.value)) << "the velocities are finite (about 1e297 m/s): the energy is what overflows";
+  for (Index b = 0; b < world.model().bodyCount(); ++b) EXPECT_EQ(world.state().v[b], before.v[b]) << b;
 }
 
 TEST(RigidWorldInput, TheSceneHelpersRefuseSizesTheirIndicesCannotHold) {

@@ -334,6 +334,10 @@ TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
   bad = sim.state();
   bad.v(7, 2) = std::numeric_limits<S>::infinity();
   EXPECT_EQ(refusal(bad), "Simulation::setState: state.v(7, 2) must be finite, got inf");
+  bad = sim.state();  // finite in float and double, but faster than light
+  bad.v(4, 0) = S(1e30);
+  EXPECT_THAT(refusal(bad), ::testing::StartsWith("Simulation::setState: state.v(4) must be a speed of at most "
+                                                  "299792458 m/s (the speed of light), got (1"));
   // The clock drives kinematic pins and the wind: a clock that is not a number is refused too.
   for (const double time : {std::nan(""), std::numeric_limits<double>::infinity(), -HUGE_VAL}) {
     bad = sim.state();

@@ -59,6 +59,8 @@ void validateKinematicPath(const KinematicPath& p, const std::string& where) {
       throw std::invalid_argument(where + field + " must be finite, got " + text(v));
   };
   finite(p.velocity, "velocity");
+  if (!detail::speedWithinLimit(p.velocity.x, p.velocity.y, p.velocity.z))
+    detail::rejectField(where + "velocity", text(p.velocity), detail::speedRule());
   finite(p.center, "center");
   finite(p.axis, "axis");
   if (!std::isfinite(p.angularVelocity))

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -69,6 +70,10 @@ inline std::string number3(const Eigen::Vector3d& v) { return number3(v.x(), v.y
 [[noreturn]] inline void rejectField(std::string_view field, double value, std::string_view rule) {
   rejectField(field, number(value), rule);
 }
+/// Whether a velocity is within kMaxSpeed (weft/core/types.hpp), and what that requires, as
+/// messages say it.
+inline bool speedWithinLimit(double x, double y, double z) { return std::hypot(x, y, z) <= kMaxSpeed; }
+inline std::string speedRule() { return "a speed of at most " + number(kMaxSpeed) + " m/s (the speed of light)"; }
 /// rejectField unless `ok`.
 inline void requireField(bool ok, std::string_view field, double value, std::string_view rule) {
   if (!ok) rejectField(field, value, rule);

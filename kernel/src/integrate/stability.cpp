@@ -43,7 +43,7 @@ std::string StepStatus::message() const {
       break;
     case StepCode::NonFinite:
       if (body >= 0) {
-        out << "non-finite state: rigid body " << body << " has position or velocity " << value
+        out << "non-finite state: rigid body " << body << " has position, velocity or kinetic energy " << value
             << " after the step starting at t = " << time << " s (reduce dt)";
       } else {
         out << "non-finite state: particle " << particle << " has position or velocity " << value

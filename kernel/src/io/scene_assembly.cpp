@@ -118,6 +118,9 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
       throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be within the range of " +
                        (sizeof(S) == sizeof(float) ? "float" : "double") + " precision (|value| <= " + fmt(big) +
                        "), got " + fmt(v));
+    if (!detail::speedWithinLimit(v.x, v.y, v.z))
+      throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be " + detail::speedRule() +
+                       ", got " + fmt(v));
     const Index end = k + 1 < scene.bodies.size() ? out.firstParticle[k + 1] : out.built.model.particleCount();
     for (Index i = out.firstParticle[k]; i < end; ++i)
       if (!out.built.model.isPinned(i)) {

@@ -46,6 +46,9 @@ Index ModelBuilder<S>::addParticle(const Vec3d& position, double mass, const Vec
   requireFinite(where, indexed("velocity.x of particle", i), velocity.x);
   requireFinite(where, indexed("velocity.y of particle", i), velocity.y);
   requireFinite(where, indexed("velocity.z of particle", i), velocity.z);
+  if (!detail::speedWithinLimit(velocity.x, velocity.y, velocity.z))
+    detail::rejectField(std::string(where) + ": " + indexed("velocity of particle", i), detail::number3(velocity),
+                        detail::speedRule());
   if (!(std::isfinite(mass) && mass > 0)) reject(where, indexed("mass of particle", i), mass, "finite and > 0 (kg)");
   px_.push_back(position.x);
   py_.push_back(position.y);

@@ -117,10 +117,12 @@ void validateRigidOptions(const RigidOptions& o) {
     require(std::isfinite(d.density) && d.density > 0, f + "density", "finite and > 0 (kg/m^3)", text(d.density));
     require(std::isfinite(d.mass) && d.mass >= 0, f + "mass", "finite and >= 0 (kg; 0 = from the density)",
             text(d.mass));
-    require(finite(d.position), f + "position", "finite (m)", text(d.position));
+    require(finite(d.position) && d.position.cwiseAbs().maxCoeff() <= kFarthestBody, f + "position",
+            "finite and within +-1e150 m (the squares of distances between bodies must stay finite)", text(d.position));
     require(std::isfinite(d.orientation.norm()) && d.orientation.norm() > 1e-12, f + "orientation",
             "a finite non-zero quaternion", text(d.orientation.norm()));
-    require(finite(d.velocity), f + "velocity", "finite (m/s)", text(d.velocity));
+    require(detail::speedWithinLimit(d.velocity.x(), d.velocity.y(), d.velocity.z()), f + "velocity",
+            detail::speedRule(), text(d.velocity));
     require(finite(d.angularVelocity), f + "angularVelocity", "finite (rad/s)", text(d.angularVelocity));
     require(std::isfinite(d.staticFriction) && d.staticFriction >= 0, f + "staticFriction", "finite and >= 0",
             text(d.staticFriction));
@@ -243,6 +245,9 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
       piece.offset -= com;
       piece.centre += piece.offset;
     }
+    double reach = 0;
+    for (Index k = first; k < static_cast<Index>(m.pieces.size()); ++k)
+      reach = std::max(reach, m.pieces[k].centre.norm() + m.pieces[k].boundingRadius);
     const bool finiteMass = std::isfinite(mass) && mass > 0 && inertia.allFinite() && inertia.trace() > 0;
     if (!finiteMass)
       throw std::invalid_argument(f + "mass: the body's mass or inertia is not a finite positive number (" +
@@ -255,6 +260,13 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
               "in [1e-15, 1e15] kg for a dynamic body (given, or density x volume)", text(mass));
       require(Mat3(inertia.inverse()).allFinite(), f + "shapes", "a body whose inertia can be inverted (not too thin)",
               "inertia diagonal " + text(Vec3(inertia.diagonal())));
+      // The spin, by the speed of the body's farthest point (so that 1/2 w.I w, bounded by
+      // 1/2 m (|w| reach)^2, stays finite as the linear part does).
+      const double spin = std::hypot(d.angularVelocity.x(), d.angularVelocity.y(), d.angularVelocity.z());
+      require(spin * reach <= kMaxSpeed, f + "angularVelocity",
+              "at most " + text(kMaxSpeed / reach) + " rad/s in size (the body's farthest point, " + text(reach) +
+                  " m from its centre of mass, moving at " + detail::speedRule() + ")",
+              text(d.angularVelocity));
     }
     m.names.push_back(d.name.empty() ? "body" + std::to_string(b) : d.name);
     m.motion.push_back(d.motion);
@@ -264,6 +276,7 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
     m.inverseMass.push_back(dynamic ? 1 / mass : 0);
     m.inverseInertia.push_back(dynamic ? Mat3(inertia.inverse()) : Mat3::Zero());
     m.centreOfMass.push_back(com);
+    m.reach.push_back(reach);
     m.staticFriction.push_back(d.staticFriction);
     m.kineticFriction.push_back(d.kineticFriction);
     m.restitution.push_back(d.restitution);

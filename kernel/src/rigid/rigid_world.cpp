@@ -134,6 +134,19 @@ void RigidWorld::setState(const RigidState& s) {
   for (std::size_t b = 0; b < n; ++b) {
     if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())))
       throw std::invalid_argument("RigidWorld::setState: body " + std::to_string(b) + " is not finite");
+    const std::string field = "RigidWorld::setState: state.";
+    std::string index = "[";  // (piece by piece: a chain of operator+ trips GCC 12's -Wrestrict)
+    index += std::to_string(b);
+    index += "]";
+    if (s.x[b].cwiseAbs().maxCoeff() > kFarthestBody)
+      detail::rejectField(field + "x" + index, detail::number3(s.x[b]),
+                          "within +-1e150 m (the squares of distances between bodies must stay finite)");
+    if (!detail::speedWithinLimit(s.v[b].x(), s.v[b].y(), s.v[b].z()))
+      detail::rejectField(field + "v" + index, detail::number3(s.v[b]), detail::speedRule());
+    if (model_->motion[b] == BodyMotion::Dynamic && s.w[b].norm() * model_->reach[b] > kMaxSpeed)
+      detail::rejectField(field + "w" + index, detail::number3(s.w[b]),
+                          "at most " + detail::number(kMaxSpeed / model_->reach[b]) +
+                              " rad/s in size (the body's farthest point moving at " + detail::speedRule() + ")");
     if (!rotationQuaternion(s.q[b]))
       detail::rejectField("RigidWorld::setState: state.q[" + std::to_string(b) + "]",
                           "norm " + detail::number(s.q[b].norm()), "a finite non-zero quaternion (norm > 1e-12)");
@@ -473,6 +486,11 @@ StepStatus RigidWorld::stepChunk(double h, const Executor& executor, bool force,
       const double value = !finite(state_.x[b]) ? state_.x[b].sum() : state_.v[b].sum() + state_.w[b].sum();
       return fail(StepCode::NonFinite, b, value);
     }
+    // Finite speeds whose kinetic energy is not (m |v|^2 + |w|^2 tr I bounds twice it): the
+    // energy and the next step's impulses would overflow.
+    const double twiceEnergyBound =
+        m.mass[b] * state_.v[b].squaredNorm() + state_.w[b].squaredNorm() * m.inertia[b].trace();
+    if (!std::isfinite(twiceEnergyBound)) return fail(StepCode::NonFinite, b, twiceEnergyBound);
   }
 
   // What this step found is what the next one starts from.

@@ -188,6 +188,10 @@ void Simulation<S>::setState(const State<S>& state) {
                                   std::to_string(i) + ", " + std::to_string(c) + ")",
                               static_cast<double>((*array)(i, c)), "finite");
   }
+  for (Index i = 0; i < n; ++i)  // (finite, but its kinetic energy is not: 1e300 m/s)
+    if (!detail::speedWithinLimit(state.v(i, 0), state.v(i, 1), state.v(i, 2)))
+      detail::rejectField("Simulation::setState: state.v(" + std::to_string(i) + ")",
+                          detail::number3(state.v(i, 0), state.v(i, 1), state.v(i, 2)), detail::speedRule());
   // The clock drives kinematic pins, paths and wind: a clock that is not a finite number
   // would put NaN into the positions at the next step.
   detail::requireField(std::isfinite(state.time), "Simulation::setState: state.time", state.time, "finite (s)");

@@ -22,7 +22,7 @@ namespace weft {
 /// A prescribed rigid motion, active between startTime and endTime (s, on the simulation's
 /// clock counted from its initial state) and frozen outside.
 struct KinematicPath {
-  Vec3d velocity{0, 0, 0};                                   // m/s
+  Vec3d velocity{0, 0, 0};                                   // m/s (at most kMaxSpeed)
   Vec3d center{0, 0, 0};                                     // m, the rotation centre at tau = 0
   Vec3d axis{0, 1, 0};                                       // direction of the rotation axis (normalised on use)
   double angularVelocity = 0;                                // rad/s (right hand about axis)
@@ -38,7 +38,8 @@ Vec3d kinematicInverse(const KinematicPath& path, const Vec3d& p, double t);
 Vec3d kinematicRotate(const KinematicPath& path, const Vec3d& d, double t);
 
 /// Throws std::invalid_argument naming `where` + the field and the value unless every
-/// field is finite, the axis is non-zero when the path turns, 0 <= startTime <= endTime.
+/// field is finite, the speed is at most kMaxSpeed, the axis is non-zero when the path
+/// turns, 0 <= startTime <= endTime.
 void validateKinematicPath(const KinematicPath& path, const std::string& where);
 
 }  // namespace weft

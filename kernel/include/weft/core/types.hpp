@@ -36,4 +36,10 @@ struct Vec3d {
   double x = 0, y = 0, z = 0;
 };
 
+/// The fastest speed a velocity given to the kernel may have (particles, rigid bodies, the
+/// points of a spinning body, kinematic paths), m/s: the speed of light. Nothing the kernel
+/// models moves faster; a velocity of 1e300 m/s is a finite number, but its kinetic energy
+/// (1/2 m v^2) and the solvers' products of speeds are not.
+inline constexpr double kMaxSpeed = 299792458.0;
+
 }  // namespace weft

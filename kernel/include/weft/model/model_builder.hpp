@@ -28,7 +28,7 @@ template <class S>
 class ModelBuilder {
  public:
   /// Adds a particle at `position` (m) with `mass` (kg, finite and > 0) and velocity
-  /// `velocity` (m/s). Returns its index.
+  /// `velocity` (m/s, finite, a speed of at most kMaxSpeed). Returns its index.
   Index addParticle(const Vec3d& position, double mass, const Vec3d& velocity = {});
 
   /// Adds a spring between particles a and b. restLength < 0 (the default) means the

@@ -79,11 +79,11 @@ struct RigidBodyDesc {
   double density = 1000;               // kg/m^3 (> 0)
   double mass = 0;  // > 0: the body's mass (inertia scaled to match); 0: from density; in [1e-15, 1e15] kg either way
                     // when dynamic; 0 for static and kinematic bodies (refused otherwise)
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();               // body frame origin, world, m (|each| <= 1e150)
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // body frame axes, world
   // Dynamic bodies only (zero for static ones and for kinematic ones, which move by `path`):
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();         // of the centre of mass, m/s
-  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  // world, rad/s
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();         // of the centre of mass, m/s (at most kMaxSpeed)
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  // world, rad/s (no point faster than kMaxSpeed)
   double staticFriction = 0.6;   // >= 0; a pair uses the geometric mean of its bodies' coefficients
   double kineticFriction = 0.5;  // in [0, staticFriction]
   double restitution = 0;        // in [0, 1]; a pair uses the larger
@@ -103,6 +103,10 @@ const char* rigidTimeOfImpactName(RigidTimeOfImpact mode);
 
 /// A dynamic body's mass, given or from its density and volume, must be within these (kg).
 inline constexpr double kMinBodyMass = 1e-15, kMaxBodyMass = 1e15;
+/// A body's position (each coordinate, m) must be within +-this: the squares of distances
+/// between bodies stay finite (as for particles in double). Velocities: weft::kMaxSpeed, for
+/// the centre of mass and for the farthest point of a spinning body.
+inline constexpr double kFarthestBody = 1e150;
 /// The largest RigidOptions::maxPairs (the pair buffers are reserved up front).
 inline constexpr Index kMaxRigidPairs = Index(1) << 28;
 
@@ -160,6 +164,7 @@ struct RigidModel {
   std::vector<Eigen::Matrix3d> inertia;         // about the centre of mass, body axes, kg m^2
   std::vector<Eigen::Matrix3d> inverseInertia;  // body axes (0: static or kinematic)
   std::vector<Eigen::Vector3d> centreOfMass;    // in the body frame (from the given origin), m
+  std::vector<double> reach;                    // distance from the centre of mass to the farthest point, m
   std::vector<double> staticFriction, kineticFriction, restitution;
   std::vector<KinematicPath> paths;  // per body (used by kinematic ones)
   std::vector<Index> firstPiece;     // body b's pieces are [firstPiece[b], firstPiece[b + 1])
@@ -258,8 +263,10 @@ class RigidWorld {
 
   const RigidModel& model() const { return *model_; }
   const RigidState& state() const { return state_; }
-  /// Starts from `state`: one entry per body, finite, orientations non-zero quaternions
-  /// (normalised here), a finite time; else std::invalid_argument and the world unchanged.
+  /// Starts from `state`: one entry per body, positions within +-kFarthestBody, speeds (of
+  /// the centre of mass and of a dynamic body's farthest point) at most kMaxSpeed,
+  /// orientations non-zero quaternions (normalised here), a finite time; else
+  /// std::invalid_argument naming the field and the world unchanged.
   void setState(const RigidState& state);
   /// Checkpoints (Simulation::save / load): the state, the kinematic bodies' path origins,
   /// the last step's pairs with their warm-start impulses and witness caches, its substep

@@ -147,7 +147,8 @@ class Simulation {
   /// starts (a construction does not pay for a check nobody reads); the count is kept, so
   /// like the steps this is for one thread at a time.
   std::int64_t startIntersectionCount() const;
-  /// Replaces the state (same particle count) and clears a failure.
+  /// Replaces the state (same particle count, finite positions and time, speeds at most
+  /// kMaxSpeed; else std::invalid_argument naming the entry) and clears a failure.
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
   /// Changes the fixed step (> 0) and clears a failure.
