@@ -3,6 +3,7 @@
 // through a one-triangle wall at 100 m/s with dt = 1/60 (and discrete detection alone
 // missing it), rollback that restores bit for bit, time of impact to epsilon, and bitwise
 // identical results for 1 and 2 threads.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -510,6 +511,61 @@ TEST(CollideOptions, BadValuesAreRejectedByName) {
   c.meshes[0] = wall();
   c.meshes[0].mesh.triangles.clear();
   EXPECT_NE(message(c).find("at least one triangle"), std::string::npos) << message(c);
+}
+
+// An obstacle whose surface lies where the precision cannot place a particle to within the
+// thickness is refused: a sphere of radius 1e20 m (finite) would round every particle put
+// back on it to the same few points, and the step would then meet every pair of them.
+TYPED_TEST(Collide, ObstaclesBeyondWhatThePrecisionResolvesAreRefusedByName) {
+  using S = TypeParam;
+  const double eps = std::numeric_limits<S>::epsilon();
+  const char* precision = std::is_same_v<S, float> ? "float" : "double";
+  const auto message = [&](const CollisionOptions& c) {
+    try {
+      validateCollisionReach(c, eps, precision, "collision");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  CollisionOptions c;  // thickness 5 mm: 5.6e12 m in double, 10485.76 m in float
+  const double farthest = c.thickness / (4 * eps);
+  c.obstacles.push_back(Obstacle::sphere({0, 0, 0}, 1e20));
+  EXPECT_EQ(message(c), "collision.obstacles[0] (sphere): |point| + radius must be at most " +
+                            std::string(std::is_same_v<S, float> ? "10485.76" : "5629499534213.12") + " m in " +
+                            precision +
+                            " precision (farther from the origin, rounding moves a contact by more than a quarter "
+                            "of the thickness, 0.005 m), got 1e+20 m");
+  // A plane is as far as its distance from the origin, wherever its point is given.
+  c.obstacles = {Obstacle::plane({1e20, -0.4, 0}, {0, 1, 0})};
+  EXPECT_EQ(message(c), "accepted");
+  c.obstacles = {Obstacle::plane({0, -1.01 * farthest, 0}, {0, 2, 0})};
+  EXPECT_THAT(message(c), ::testing::HasSubstr("obstacles[0] (plane): the plane's distance from the origin"));
+  c.obstacles = {Obstacle::plane({0, -0.99 * farthest, 0}, {0, 2, 0})};
+  EXPECT_EQ(message(c), "accepted");
+  c.obstacles = {Obstacle::box({0, 0, 1.01 * farthest}, {0.1, 0.1, 0.1})};
+  EXPECT_THAT(message(c), ::testing::HasSubstr("obstacles[0] (box): |point| + |halfExtents|"));
+  c.obstacles = {Obstacle::capsule({0, 0, 0}, {2 * farthest, 0, 0}, 0.1)};
+  EXPECT_THAT(message(c), ::testing::HasSubstr("obstacles[0] (capsule)"));
+  c.obstacles.clear();
+  c.meshes.push_back(wall());
+  EXPECT_EQ(message(c), "accepted");
+  c.meshes[0].mesh.vertices[2].x = -2 * farthest;
+  EXPECT_THAT(message(c), ::testing::HasSubstr("meshes[0] (wall): the farthest vertex's distance must be at most"));
+  // A thicker contact reaches farther.
+  c.thickness = 1;
+  EXPECT_EQ(message(c), "accepted");
+  // A Simulation applies it with its precision.
+  SimulationOptions o;
+  o.dt = 1e-3;
+  o.threads = 1;
+  o.collision.obstacles.push_back(Obstacle::sphere({0, -1e20, 0}, 1e20));
+  try {
+    Simulation<S> sim(freeCloth<S>(4, 1.0), o);
+    ADD_FAILURE() << "a sphere of radius 1e20 m was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("SimulationOptions.collision.obstacles[0] (sphere)"));
+  }
 }
 
 }  // namespace

@@ -676,6 +676,14 @@ TEST(SceneBadFiles, MeshObstaclesThatCannotBeReadFailAtAssembly) {
   EXPECT_THAT(sceneError([&] { assembleScene<double>(fast); }),
               HasSubstr("fast: bodies[0].velocity: must be a speed of at most 299792458 m/s (the speed of light), "
                         "got [1e+39, 0, 0]"));
+  // A sphere as large as a finite number allows: its surface is beyond what the precision
+  // resolves at the thickness, refused with its extent (the farthest allowed depends on S).
+  const SceneSpec vast = parseScene(R"({"name": "vast", "bodies": [{"type": "rope"}], "dt": 0.001, "steps": 1,
+      "collision": {"obstacles": [{"type": "sphere", "center": [0, -1e20, 0], "radius": 1e20}]}})");
+  EXPECT_THAT(sceneError([&] { assembleScene<double>(vast); }),
+              HasSubstr("vast: collision.obstacles[0] (sphere): |point| + radius must be at most 5629499534213.12 m in "
+                        "double precision"));
+  EXPECT_THAT(sceneError([&] { assembleScene<float>(vast); }), HasSubstr("at most 10485.76 m in float precision"));
   const SceneSpec light = parseScene(R"({"name": "light", "bodies": [{"type": "rope", "velocity": [0, 299792458, 0]}],
                                          "dt": 0.001, "steps": 1})");
   EXPECT_NO_THROW(assembleScene<double>(light));

@@ -15,6 +15,53 @@ namespace weft {
 using detail::norm;
 using detail::v;
 
+void validateCollisionReach(const CollisionOptions& c, double epsilon, const char* precision, const char* where) {
+  // The rounding of a coordinate of size M is about M epsilon: a distance to a surface that
+  // far out, and a particle put back onto it, are off by more than the contact can tell
+  // apart once that reaches a fraction of the thickness (a sphere of radius 1e20 m rounds
+  // every particle on it to the same few points, and self-collision then meets all pairs).
+  const double farthest = c.thickness / (4 * epsilon);
+  const auto check = [&](const std::string& field, double reach) {
+    if (!(reach <= farthest))
+      throw std::invalid_argument(std::string(where) + "." + field + " must be at most " + detail::number(farthest) +
+                                  " m in " + precision +
+                                  " precision (farther from the origin, rounding moves a contact by more than a "
+                                  "quarter of the thickness, " +
+                                  detail::number(c.thickness) + " m), got " + detail::number(reach) + " m");
+  };
+  const auto length = [](const Vec3d& a) { return std::hypot(a.x, a.y, a.z); };
+  for (size_t k = 0; k < c.obstacles.size(); ++k) {
+    const Obstacle& o = c.obstacles[k];
+    const std::string f = "obstacles[" + std::to_string(k) + "] (" + obstacleKindName(o.kind) + ")";
+    switch (o.kind) {
+      case ObstacleKind::Plane: {  // its offset: the rounding of n . (x - point)
+        const double n = length(o.normal);
+        check(f + ": the plane's distance from the origin",
+              (std::abs(o.normal.x * o.point.x) + std::abs(o.normal.y * o.point.y) + std::abs(o.normal.z * o.point.z)) /
+                  n);
+        break;
+      }
+      case ObstacleKind::Sphere:
+        check(f + ": |point| + radius", length(o.point) + o.radius);
+        break;
+      case ObstacleKind::Capsule:
+        check(f + ": the farther end's distance + radius", std::max(length(o.point), length(o.end)) + o.radius);
+        break;
+      case ObstacleKind::Box:
+        check(f + ": |point| + |halfExtents|", length(o.point) + length(o.halfExtents));
+        break;
+    }
+  }
+  for (size_t k = 0; k < c.meshes.size(); ++k) {
+    const MeshObstacle& m = c.meshes[k];
+    double reach = 0;
+    for (const Vec3d& p : m.mesh.vertices) reach = std::max(reach, length(p));
+    check("meshes[" + std::to_string(k) + "]" + (m.name.empty() ? "" : " (" + m.name + ")") +
+              ": the farthest vertex's distance",
+          reach);
+  }
+}
+
 void validateCollision(const CollisionOptions& c, const char* where) {
   const std::string w = std::string(where) + ".";
   const auto fail = [&](const std::string& field, double value, const char* rule) {

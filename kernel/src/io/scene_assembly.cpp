@@ -186,6 +186,8 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
   };
   try {
     validateCollision(out.options.collision, "collision");
+    validateCollisionReach(out.options.collision, std::numeric_limits<S>::epsilon(),
+                           sizeof(S) == sizeof(float) ? "float" : "double", "collision");
     validateRigidOptions(out.options.rigid);
     if (out.options.selfCollision.enabled)
       validateSelfCollision(out.options.selfCollision, out.built.model, out.built.state.x, "self_collision",

@@ -22,7 +22,7 @@ class ParticleBodyContacts {
 
   /// thickness: particle radius, m (> 0); triangleCount: the most cloth triangles
   /// countCrossings is given.
-  ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness, Index triangleCount = 0);
+  ParticleBodyContacts(const RigidModel& bodies, Index particleCount, double thickness, Index triangleCount);
 
   /// Resolves the particles' candidate (x1, v1) of the step x0 -> x1 against the bodies
   /// of `world` (which has stepped over the same interval), and applies the reactions to

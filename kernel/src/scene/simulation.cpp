@@ -70,6 +70,8 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
       nextX_(model_->particleCount(), 3),
       nextV_(model_->particleCount(), 3) {
   requireStep<S>(options_.dt, "SimulationOptions.dt");
+  validateCollisionReach(options_.collision, std::numeric_limits<S>::epsilon(), detail::PrecisionLimits<S>::kName,
+                         "SimulationOptions.collision");
   setState(initial);
   clockStart_ = state_.time;
   // Kinematic pins: validated against the model, tracked from the initial positions.

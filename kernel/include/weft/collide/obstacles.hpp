@@ -115,6 +115,14 @@ struct CollisionOptions {
 
 /// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.
 void validateCollision(const CollisionOptions& options, const char* where = "collision");
+/// Throws std::invalid_argument naming the obstacle and its extent when an obstacle's
+/// surface (or a mesh vertex, at time 0) lies farther from the origin than thickness /
+/// (4 epsilon): there, rounding in a precision of machine epsilon `epsilon` (named
+/// `precision` in the message) moves a contact by more than a quarter of the thickness.
+/// In double with the default 5 mm, 5.6e12 m; in float, about 10 km. Simulation<S> applies
+/// it with S's epsilon.
+void validateCollisionReach(const CollisionOptions& options, double epsilon, const char* precision,
+                            const char* where = "collision");
 
 /// Signed distance (m, negative inside) and outward unit normal of an obstacle at x.
 double obstacleDistance(const Obstacle& o, const Vec3d& x, Vec3d* normal = nullptr);
