@@ -623,10 +623,21 @@ std::vector<std::string> effectNames(const weft::SimulationOptions& o) {
 const char* signalName(int signal) { return signal == SIGINT ? "SIGINT" : signal == SIGTERM ? "SIGTERM" : "a signal"; }
 
 // Ctrl-C (SIGINT) and SIGTERM during the steps: the handler only records the signal; the
-// loop finishes the step it is in, then writes frames and the checkpoint and reports.
+// loop finishes the step it is in, then writes frames and the checkpoint and reports. A
+// second signal while that step is still running stops the process at once (the signal's
+// default action): a step that does not end must not hold the run hostage. During the last
+// writes a second signal is ignored, so that they are not cut short.
 volatile std::sig_atomic_t gSignal = 0;
+volatile std::sig_atomic_t gStepping = 0;  // inside Simulation::step
 
-extern "C" void onSignal(int signal) { gSignal = signal; }
+extern "C" void onSignal(int signal) {
+  if (gSignal != 0 && gStepping != 0) {  // (signal and raise are async-signal-safe)
+    std::signal(signal, SIG_DFL);
+    std::raise(signal);
+    return;
+  }
+  gSignal = signal;
+}
 
 /// Installs the handler for the lifetime of the object, and puts the previous ones back.
 class SignalScope {
@@ -757,7 +768,11 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     while (sim.stepCount() < steps && status.ok() && gSignal == 0) {
       const std::int64_t boundary = std::min(steps, (sim.stepCount() / every + 1) * every);
       const auto start = std::chrono::steady_clock::now();
-      while (sim.stepCount() < boundary && gSignal == 0 && (status = sim.step()).ok()) {
+      while (sim.stepCount() < boundary && gSignal == 0) {
+        gStepping = 1;
+        status = sim.step();
+        gStepping = 0;
+        if (!status.ok()) break;
       }
       wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (status.ok() && periodic && sim.stepCount() % every == 0) {
