@@ -134,17 +134,23 @@ void RigidWorld::setState(const RigidState& s) {
   for (std::size_t b = 0; b < n; ++b) {
     if (!(finite(s.x[b]) && finite(s.v[b]) && finite(s.w[b]) && std::isfinite(s.q[b].norm())))
       throw std::invalid_argument("RigidWorld::setState: body " + std::to_string(b) + " is not finite");
-    const std::string field = "RigidWorld::setState: state.";
-    std::string index = "[";  // (piece by piece: a chain of operator+ trips GCC 12's -Wrestrict)
-    index += std::to_string(b);
-    index += "]";
+    // The field's name, built only for a message (piece by piece: a chain of operator+ trips
+    // GCC 12's -Wrestrict).
+    const auto field = [b](const char* what) {
+      std::string f = "RigidWorld::setState: state.";
+      f += what;
+      f += "[";
+      f += std::to_string(b);
+      f += "]";
+      return f;
+    };
     if (s.x[b].cwiseAbs().maxCoeff() > kFarthestBody)
-      detail::rejectField(field + "x" + index, detail::number3(s.x[b]),
+      detail::rejectField(field("x"), detail::number3(s.x[b]),
                           "within +-1e150 m (the squares of distances between bodies must stay finite)");
     if (!detail::speedWithinLimit(s.v[b].x(), s.v[b].y(), s.v[b].z()))
-      detail::rejectField(field + "v" + index, detail::number3(s.v[b]), detail::speedRule());
+      detail::rejectField(field("v"), detail::number3(s.v[b]), detail::speedRule());
     if (model_->motion[b] == BodyMotion::Dynamic && s.w[b].norm() * model_->reach[b] > kMaxSpeed)
-      detail::rejectField(field + "w" + index, detail::number3(s.w[b]),
+      detail::rejectField(field("w"), detail::number3(s.w[b]),
                           "at most " + detail::number(kMaxSpeed / model_->reach[b]) +
                               " rad/s in size (the body's farthest point moving at " + detail::speedRule() + ")");
     if (!rotationQuaternion(s.q[b]))
