@@ -536,11 +536,13 @@ TYPED_TEST(Collide, ObstaclesBeyondWhatThePrecisionResolvesAreRefusedByName) {
                             precision +
                             " precision (farther from the origin, rounding moves a contact by more than a quarter "
                             "of the thickness, 0.005 m), got 1e+20 m");
-  // A plane is as far as its distance from the origin, wherever its point is given.
+  // A plane counts by the coordinates its distance rounds (sum |n_k p_k| / |n|): a point far
+  // along the plane in an axis the normal does not have is harmless.
   c.obstacles = {Obstacle::plane({1e20, -0.4, 0}, {0, 1, 0})};
   EXPECT_EQ(message(c), "accepted");
   c.obstacles = {Obstacle::plane({0, -1.01 * farthest, 0}, {0, 2, 0})};
-  EXPECT_THAT(message(c), ::testing::HasSubstr("obstacles[0] (plane): the plane's distance from the origin"));
+  EXPECT_THAT(message(c),
+              ::testing::HasSubstr("obstacles[0] (plane): sum |normal_k point_k| / |normal| must be at most"));
   c.obstacles = {Obstacle::plane({0, -0.99 * farthest, 0}, {0, 2, 0})};
   EXPECT_EQ(message(c), "accepted");
   c.obstacles = {Obstacle::box({0, 0, 1.01 * farthest}, {0.1, 0.1, 0.1})};

@@ -34,9 +34,9 @@ void validateCollisionReach(const CollisionOptions& c, double epsilon, const cha
     const Obstacle& o = c.obstacles[k];
     const std::string f = "obstacles[" + std::to_string(k) + "] (" + obstacleKindName(o.kind) + ")";
     switch (o.kind) {
-      case ObstacleKind::Plane: {  // its offset: the rounding of n . (x - point)
+      case ObstacleKind::Plane: {  // the distance n . (x - point) rounds each x_k - point_k
         const double n = length(o.normal);
-        check(f + ": the plane's distance from the origin",
+        check(f + ": sum |normal_k point_k| / |normal|",
               (std::abs(o.normal.x * o.point.x) + std::abs(o.normal.y * o.point.y) + std::abs(o.normal.z * o.point.z)) /
                   n);
         break;
