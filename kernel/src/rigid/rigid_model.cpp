@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "core/text.hpp"
+#include "rigid_rules.hpp"
 #include "weft/rigid/rigid_world.hpp"
 
 namespace weft {
@@ -118,7 +119,7 @@ void validateRigidOptions(const RigidOptions& o) {
     require(std::isfinite(d.mass) && d.mass >= 0, f + "mass", "finite and >= 0 (kg; 0 = from the density)",
             text(d.mass));
     require(finite(d.position) && d.position.cwiseAbs().maxCoeff() <= kFarthestBody, f + "position",
-            "finite and within +-1e150 m (the squares of distances between bodies must stay finite)", text(d.position));
+            "finite and " + detail::farthestBodyRule(), text(d.position));
     require(std::isfinite(d.orientation.norm()) && d.orientation.norm() > 1e-12, f + "orientation",
             "a finite non-zero quaternion", text(d.orientation.norm()));
     require(detail::speedWithinLimit(d.velocity.x(), d.velocity.y(), d.velocity.z()), f + "velocity",
@@ -262,10 +263,7 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
               "inertia diagonal " + text(Vec3(inertia.diagonal())));
       // The spin, by the speed of the body's farthest point (so that 1/2 w.I w, bounded by
       // 1/2 m (|w| reach)^2, stays finite as the linear part does).
-      const double spin = std::hypot(d.angularVelocity.x(), d.angularVelocity.y(), d.angularVelocity.z());
-      require(spin * reach <= kMaxSpeed, f + "angularVelocity",
-              "at most " + text(kMaxSpeed / reach) + " rad/s in size (the body's farthest point, " + text(reach) +
-                  " m from its centre of mass, moving at " + detail::speedRule() + ")",
+      require(detail::spinWithinLimit(d.angularVelocity, reach), f + "angularVelocity", detail::spinRule(reach),
               text(d.angularVelocity));
     }
     m.names.push_back(d.name.empty() ? "body" + std::to_string(b) : d.name);

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "core/text.hpp"
+#include "rigid_rules.hpp"
 
 namespace weft {
 
@@ -145,14 +146,11 @@ void RigidWorld::setState(const RigidState& s) {
       return f;
     };
     if (s.x[b].cwiseAbs().maxCoeff() > kFarthestBody)
-      detail::rejectField(field("x"), detail::number3(s.x[b]),
-                          "within +-1e150 m (the squares of distances between bodies must stay finite)");
+      detail::rejectField(field("x"), detail::number3(s.x[b]), detail::farthestBodyRule());
     if (!detail::speedWithinLimit(s.v[b].x(), s.v[b].y(), s.v[b].z()))
       detail::rejectField(field("v"), detail::number3(s.v[b]), detail::speedRule());
-    if (model_->motion[b] == BodyMotion::Dynamic && s.w[b].norm() * model_->reach[b] > kMaxSpeed)
-      detail::rejectField(field("w"), detail::number3(s.w[b]),
-                          "at most " + detail::number(kMaxSpeed / model_->reach[b]) +
-                              " rad/s in size (the body's farthest point moving at " + detail::speedRule() + ")");
+    if (model_->motion[b] == BodyMotion::Dynamic && !detail::spinWithinLimit(s.w[b], model_->reach[b]))
+      detail::rejectField(field("w"), detail::number3(s.w[b]), detail::spinRule(model_->reach[b]));
     if (!rotationQuaternion(s.q[b]))
       detail::rejectField("RigidWorld::setState: state.q[" + std::to_string(b) + "]",
                           "norm " + detail::number(s.q[b].norm()), "a finite non-zero quaternion (norm > 1e-12)");
