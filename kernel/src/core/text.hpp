@@ -72,7 +72,10 @@ inline std::string number3(const Eigen::Vector3d& v) { return number3(v.x(), v.y
 }
 /// Whether a velocity is within kMaxSpeed (weft/core/types.hpp), and what that requires, as
 /// messages say it.
+/// (A speed within it is within the range of float too: velocities need no range check of
+/// their own.)
 inline bool speedWithinLimit(double x, double y, double z) { return std::hypot(x, y, z) <= kMaxSpeed; }
+static_assert(kMaxSpeed < 3.4e38, "kMaxSpeed is within float's range");
 inline std::string speedRule() { return "a speed of at most " + number(kMaxSpeed) + " m/s (the speed of light)"; }
 /// rejectField unless `ok`.
 inline void requireField(bool ok, std::string_view field, double value, std::string_view rule) {

@@ -113,11 +113,7 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
     if (v.x == 0 && v.y == 0 && v.z == 0) continue;
     if (!(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)))
       throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be finite, got " + fmt(v));
-    const double big = static_cast<double>(std::numeric_limits<S>::max());
-    if (!(std::abs(v.x) <= big && std::abs(v.y) <= big && std::abs(v.z) <= big))
-      throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be within the range of " +
-                       (sizeof(S) == sizeof(float) ? "float" : "double") + " precision (|value| <= " + fmt(big) +
-                       "), got " + fmt(v));
+    // (At most the speed of light: within the range of float too.)
     if (!detail::speedWithinLimit(v.x, v.y, v.z))
       throw SceneError(scene.name + ": bodies[" + std::to_string(k) + "].velocity: must be " + detail::speedRule() +
                        ", got " + fmt(v));

@@ -212,11 +212,7 @@ ModelAndState<S> ModelBuilder<S>::build() {
     (void)coordinate(px_[i], "position.x of particle", i);
     (void)coordinate(py_[i], "position.y of particle", i);
     (void)coordinate(pz_[i], "position.z of particle", i);
-    if (!pinned_[i]) {
-      (void)scalar(vx_[i], "velocity.x of particle", i);
-      (void)scalar(vy_[i], "velocity.y of particle", i);
-      (void)scalar(vz_[i], "velocity.z of particle", i);
-    }
+    // (Velocities: addParticle held them to kMaxSpeed, within the range of float too.)
   }
   for (Index s = 0; s < m; ++s) {
     (void)scalar(rest_[s], "restLength of spring", s);
