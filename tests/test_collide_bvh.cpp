@@ -821,6 +821,49 @@ TYPED_TEST(BvhTyped, IdenticalForOneAndTwoThreadsOnA128ClothAndASphere) {
   EXPECT_TRUE(std::adjacent_find(p2.begin(), p2.end(), [](auto& l, auto& r) { return !(l < r); }) == p2.end());
 }
 
+// selfOverlappingPairs with a limit: it answers in full up to the limit, and past it stops
+// and says so. Where it stops is a property of the tree (the pairs and the node pairs it
+// meets), the same for one thread and two.
+TYPED_TEST(BvhTyped, ASelfQueryStopsPastItsLimitTheSameOnAnyThreadCount) {
+  using S = TypeParam;
+  const Executor one(1), two(2);
+  const Mesh<S> cloth = crumpledCloth<S>(32, 0.6, 5);
+  TriangleBvh<S> bvh;
+  bvh.build(cloth.x, cloth.triangles, two, 0.01);
+  BvhPairScratch scratch;
+  std::vector<TrianglePair> all, pairs;
+  ASSERT_TRUE(bvh.selfOverlappingPairs(all, scratch, two));
+  const std::int64_t n = static_cast<std::int64_t>(all.size());
+  ASSERT_GT(n, 1000);
+  // The least limit that lets the query finish, found by bisection on two threads.
+  std::int64_t lo = 0, hi = 64 * n;  // fails at lo (nothing fits in 0), finishes at hi
+  ASSERT_FALSE(bvh.selfOverlappingPairs(pairs, scratch, two, {}, lo));
+  ASSERT_TRUE(bvh.selfOverlappingPairs(pairs, scratch, two, {}, hi));
+  while (hi - lo > 1) {
+    const std::int64_t mid = lo + (hi - lo) / 2;
+    (bvh.selfOverlappingPairs(pairs, scratch, two, {}, mid) ? hi : lo) = mid;
+  }
+  EXPECT_GE(hi, n);      // every listed pair counts
+  EXPECT_LE(hi, 4 * n);  // and the node pairs met are of the same order
+  for (const Executor* exec : {&one, &two}) {
+    for (int k = 0; k < 3; ++k) {  // (repeated: the tasks may run in another order)
+      EXPECT_TRUE(bvh.selfOverlappingPairs(pairs, scratch, *exec, {}, hi));
+      EXPECT_EQ(pairs, all);
+      EXPECT_FALSE(bvh.selfOverlappingPairs(pairs, scratch, *exec, {}, hi - 1));
+      EXPECT_TRUE(pairs.empty());
+    }
+  }
+  // Every triangle at one point: all n (n - 1) / 2 pairs overlap, and a limit of 256 per
+  // triangle stops the query long before it would list them.
+  Vec3Array<S> collapsed = cloth.x;
+  for (Index i = 0; i < collapsed.rows(); ++i)
+    for (int a = 0; a < 3; ++a) collapsed(i, a) = S(0.25);
+  TriangleBvh<S> crushed;
+  crushed.build(collapsed, cloth.triangles, two, 0.01);
+  EXPECT_FALSE(crushed.selfOverlappingPairs(pairs, scratch, two, {}, 256 * crushed.triangleCount()));
+  EXPECT_THROW(bvh.selfOverlappingPairs(pairs, scratch, two, {}, -1), std::invalid_argument);
+}
+
 TYPED_TEST(BvhTyped, NoAllocationOnceWarmedUp) {
   using S = TypeParam;
   const Mesh<S> cloth = crumpledCloth<S>(48, 0.6, 8);

@@ -362,6 +362,13 @@ TEST(SelfCollisionOptions, BadValuesAreRefusedByField) {
   refuses(o, "iterations");
   o.iterations = 65;
   refuses(o, "iterations");
+  o = {};
+  o.maxCandidatesPerTriangle = 0;
+  refuses(o, "maxCandidatesPerTriangle");
+  o.maxCandidatesPerTriangle = (1 << 20) + 1;
+  refuses(o, "maxCandidatesPerTriangle");
+  o.maxCandidatesPerTriangle = 1 << 20;
+  EXPECT_NO_THROW(validateSelfCollision(o));
   EXPECT_NO_THROW(validateSelfCollision(SelfCollisionOptions{}));
 }
 
@@ -380,6 +387,12 @@ TEST(SelfCollisionScene, BadSectionIsRefusedWithItsPath) {
   EXPECT_NE(message(R"("self_collision":{"iterations":0})").find("self_collision.iterations"), std::string::npos);
   EXPECT_NE(message(R"("self_collision":{"thikness":0.01})").find("thikness"), std::string::npos);
   EXPECT_NE(message(R"("self_collision":{"friction":"high"})").find("self_collision.friction"), std::string::npos);
+  EXPECT_NE(message(R"("self_collision":{"max_candidates_per_triangle":0})")
+                .find("self_collision.max_candidates_per_triangle: must be in [1, 1048576], got 0"),
+            std::string::npos)
+      << message(R"("self_collision":{"max_candidates_per_triangle":0})");
+  EXPECT_NE(message(R"("self_collision":{"max_candidates_per_triangle":2.5})").find("max_candidates_per_triangle"),
+            std::string::npos);
   const SceneSpec ok = parseScene(
       R"({"bodies":[{"type":"cloth_grid","width":4,"height":4}],"dt":0.001,"steps":1,"self_collision":{"thickness":0.003}})");
   EXPECT_TRUE(ok.simulation.selfCollision.enabled);
@@ -526,6 +539,96 @@ TEST(SelfCollision, AResponseThatOverstretchesFailsTheStep) {
   EXPECT_EQ(sim.state().time, 0.0);
   EXPECT_EQ(s.time, 0.0);
   EXPECT_EQ(sim.stepCount(), 0);
+}
+
+// Two cloths inside a sphere of radius 1e12 m: the first chunk pushes every particle out
+// 1e12 m, the swept boxes of all the triangles overlap, and listing the candidates would
+// take all 2.2 million pairs (then tens of millions of exact tests per pass). The gathering
+// stops at the limit instead, and the step fails at once with the state as it was, the same
+// on one thread and two.
+TEST(SelfCollision, ACloudOfCandidatesFailsTheStepAtOnce) {
+  const std::string text = R"({"name": "swallowed", "dt": 2e-4, "steps": 3, "integrator": "rk4",
+      "bodies": [{"type": "cloth_grid", "width": 24, "height": 24, "origin": [-0.5, 0.5, -0.5],
+                  "row_axis": [1, 0, 0], "column_axis": [0, 0, 1], "total_mass": 0.5},
+                 {"type": "cloth_grid", "width": 24, "height": 24, "origin": [-0.5, 0.51, -0.5],
+                  "row_axis": [1, 0, 0], "column_axis": [0, 0, 1], "total_mass": 0.5}],
+      "collision": {"obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": 1e12}]},
+      "self_collision": {"thickness": 0.004}})";
+  std::vector<std::uint64_t> hashes;
+  for (const int threads : {1, 2}) {
+    if (weft::test::kThreadSanitizer && threads == 1) continue;
+    AssembledScene<double> a = assembleScene<double>(parseScene(text));
+    a.options.threads = threads;
+    Simulation<double> sim(std::move(a.built), a.options);
+    ASSERT_EQ(sim.model().triangleCount(), 2116);
+    const std::uint64_t before = stateHash(sim.state());
+    const StepStatus s = sim.step();
+    ASSERT_EQ(s.code, StepCode::TooManyCandidates) << s.message();
+    EXPECT_EQ(s.value, 256);
+    EXPECT_EQ(s.time, 0.0);
+    EXPECT_NE(s.message().find("more than 256 candidate pairs per triangle"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("maxCandidatesPerTriangle"), std::string::npos) << s.message();
+    EXPECT_STREQ(stepCodeName(s.code), "too-many-candidates");
+    EXPECT_EQ(stateHash(sim.state()), before);
+    EXPECT_EQ(sim.state().time, 0.0);
+    EXPECT_EQ(sim.stepCount(), 0);
+    EXPECT_EQ(sim.lastCollision().rollbacks, CollisionOptions{}.maxHalvings) << "every halving tried first";
+    EXPECT_EQ(sim.step().code, StepCode::TooManyCandidates);  // refuses until something changes
+    hashes.push_back(stateHash(sim.state()));
+  }
+  for (const std::uint64_t h : hashes) EXPECT_EQ(h, hashes.front());
+}
+
+// A cloth flying 0.85 m a step, 27 of its spacings, unculled: the step's swept boxes
+// overlap about 780 others' per triangle, past the limit, so the chunk is halved and the
+// halves pass (the count falls with the square of the chunk). The step is not failed, and
+// it is faster than listing them all.
+TEST(SelfCollision, AFastClothHalvesItsChunkInsteadOfFailing) {
+  WEFT_SKIP_UNDER_TSAN("it runs on one thread");
+  const auto run = [](int limit) {
+    const std::string text = R"({"name": "fast", "dt": 0.01, "steps": 3, "integrator": "implicit",
+      "bodies": [{"type": "cloth_grid", "width": 33, "height": 33, "origin": [-0.5, 0.5, -0.5],
+                  "row_axis": [1, 0, 0], "column_axis": [0, 0, 1], "total_mass": 0.5, "velocity": [60, 0, 60]}],
+      "self_collision": {"thickness": 0.004, "cull_flat_regions": false, "max_candidates_per_triangle": )" +
+                             std::to_string(limit) + "}}";
+    AssembledScene<double> a = assembleScene<double>(parseScene(text));
+    a.options.threads = 1;
+    Simulation<double> sim(std::move(a.built), a.options);
+    const StepStatus s = sim.run(3);
+    EXPECT_TRUE(s.ok()) << s.message();
+    EXPECT_EQ(sim.selfIntersectionCount(), 0);
+    return std::make_pair(sim.totalCollision().rollbacks, sim.totalSelfCollision());
+  };
+  const auto [halved, halvedStats] = run(256);
+  const auto [whole, wholeStats] = run(1 << 20);
+  EXPECT_EQ(whole, 0);
+  EXPECT_GE(halved, 1);
+  const std::int64_t triangles = 2 * 32 * 32;
+  EXPECT_GT(wholeStats.candidates, 256 * triangles * wholeStats.rebuilds) << "the whole step is past the limit";
+  EXPECT_LE(halvedStats.candidates, 256 * triangles * halvedStats.rebuilds);
+}
+
+// The limit is of the gathering's list: the built-in fold, which keeps about 3 candidate
+// pairs per triangle, runs with a limit of 16 and fails with one of 1.
+TEST(SelfCollision, TheCandidateLimitIsPerTriangleOfTheGathering) {
+  WEFT_SKIP_UNDER_TSAN("it runs on one thread");
+  for (const int limit : {16, 1}) {
+    SceneSpec spec = builtinSceneSpec("fold", 16);
+    spec.simulation.selfCollision.maxCandidatesPerTriangle = limit;
+    AssembledScene<double> a = assembleScene<double>(spec);
+    a.options.threads = 1;
+    Simulation<double> sim(std::move(a.built), a.options);
+    const StepStatus s = sim.run(std::llround(0.8 / spec.simulation.dt));
+    if (limit == 16) {
+      EXPECT_TRUE(s.ok()) << s.message();
+      EXPECT_GT(sim.totalSelfCollision().candidates, 0);
+      EXPECT_LE(sim.totalSelfCollision().candidates,
+                16 * sim.model().triangleCount() * sim.totalSelfCollision().rebuilds);
+    } else {
+      EXPECT_EQ(s.code, StepCode::TooManyCandidates) << s.message();
+      EXPECT_EQ(s.value, 1);
+    }
+  }
 }
 
 struct HardScene {
@@ -848,6 +951,9 @@ struct CulledPass {
   static SelfCollisionOptions enabled() {
     SelfCollisionOptions o;
     o.enabled = true;
+    // These passes are called directly, on chunks that carry the cloth up to 0.4 m (13 of
+    // its spacings): no Simulation halves a chunk past the candidate limit, so there is none.
+    o.maxCandidatesPerTriangle = 1 << 20;
     return o;
   }
   explicit CulledPass(const ModelAndState<double>& built)

@@ -939,6 +939,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["self_contacts"] = t.contacts;
       j["self_collision"] = {{"thickness", self.thickness},
                              {"cull_flat_regions", self.cullFlatRegions},
+                             {"max_candidates_per_triangle", self.maxCandidatesPerTriangle},
                              {"passes", t.passes},
                              {"gatherings", t.rebuilds},
                              {"candidates", t.candidates},

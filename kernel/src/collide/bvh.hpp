@@ -247,8 +247,13 @@ class TriangleBvh {
   /// triangles next to its own). `skipWithin`, when not empty, holds one flag per internal
   /// node (nodes() order): a set flag drops every pair with both triangles in that node's
   /// subtree (the self-collision pass's flat regions), without visiting them.
-  void selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
-                            std::span<const std::uint8_t> skipWithin = {}) const;
+  /// `limit` bounds the search: when more than `limit` pairs overlap, or the traversal meets
+  /// more than `limit` pairs of internal nodes whose boxes overlap, it stops early and returns
+  /// false (`out` is then empty). Both counts are properties of the tree, not of the
+  /// scheduling, so the answer is the same on any number of threads.
+  bool selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                            std::span<const std::uint8_t> skipWithin = {},
+                            std::int64_t limit = std::numeric_limits<std::int64_t>::max()) const;
   /// Pairs i < j sharing no vertex whose closed triangles intersect at x, sorted.
   void selfIntersectingPairs(const Vec3Array<S>& x, std::vector<TrianglePair>& out, BvhPairScratch& scratch,
                              const Executor& exec) const;
@@ -270,10 +275,12 @@ class TriangleBvh {
   void refitCorners(const Lo& lo, const Hi& hi, const Executor& exec);
   void sortKeys(const Executor& exec);
   void buildHierarchy(const Executor& exec);
+  /// Returns false when it stopped at `limit` (see selfOverlappingPairs).
   template <bool kSelf, bool kExact, bool kSkipShared = kSelf>
-  void pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
+  bool pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
                  std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
-                 std::span<const std::uint8_t> skipWithin = {}) const;
+                 std::span<const std::uint8_t> skipWithin = {},
+                 std::int64_t limit = std::numeric_limits<std::int64_t>::max()) const;
 
   Index vertexCount_ = 0;
   S margin_ = 0;

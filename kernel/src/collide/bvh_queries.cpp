@@ -4,6 +4,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -123,23 +124,23 @@ std::optional<ClosestTriangle<S>> TriangleBvh<S>::closestTriangle(const Vec3Arra
 
 template <class S>
 template <bool kSelf, bool kExact, bool kSkipShared>
-void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
+bool TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, const Vec3Array<S>* xOther,
                                std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
-                               std::span<const std::uint8_t> skipWithin) const {
+                               std::span<const std::uint8_t> skipWithin, std::int64_t limit) const {
   using Task = std::array<Index, 2>;  // node references; in self queries {a, a} means "all pairs within a"
   out.clear();
   const TriangleBvh& A = *this;
   const TriangleBvh& B = other;
-  if (A.empty() || B.empty()) return;
-  if (kSelf && A.triangleCount() < 2) return;
-  if (!kSelf && !A.rootBox_.overlaps(B.rootBox_)) return;
+  if (A.empty() || B.empty()) return true;
+  if (kSelf && A.triangleCount() < 2) return true;
+  if (!kSelf && !A.rootBox_.overlaps(B.rootBox_)) return true;
   if (!skipWithin.empty() && skipWithin.size() != A.nodes_.size())
     throw std::invalid_argument("TriangleBvh: skipWithin holds " + std::to_string(skipWithin.size()) + " flags for " +
                                 std::to_string(A.nodes_.size()) + " internal nodes");
   // Whether the pairs within internal node q are wanted (self queries).
   const std::uint8_t* skip = skipWithin.empty() ? nullptr : skipWithin.data();
   const auto within = [skip](Index q) { return q >= 0 && (skip == nullptr || skip[q] == 0); };
-  if (kSelf && !within(0)) return;
+  if (kSelf && !within(0)) return true;
 
   // Pushes the subtasks of a task that is not a pair of leaves: push(task, keep).
   const auto expand = [&](const Task& task, auto&& push) {
@@ -226,6 +227,13 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
   // leaves, to the leaf pairs, by index arithmetic only (no branch on the kinds of nodes).
   const Index tasks = static_cast<Index>(front.size());
   if (static_cast<Index>(scratch.taskPairs_.size()) < tasks) scratch.taskPairs_.resize(static_cast<size_t>(tasks));
+  // The limit: every task adds the overlapping leaf pairs and node pairs of each level it
+  // expands to shared totals. A total is only ever a sum of some tasks' exact counts, so it
+  // passes the limit only if the whole query's count does: stopping is decided by the tree,
+  // whatever the order the tasks run in.
+  const bool limited = limit < std::numeric_limits<std::int64_t>::max();
+  std::atomic<std::int64_t> leafTotal{0}, nodeTotal{0};
+  std::atomic<bool> stopped{false};
   const size_t slots = static_cast<size_t>(std::max(1, exec.threadCount()));
   if (scratch.threadLevels_.size() < slots) scratch.threadLevels_.resize(slots);
   exec.parallelFor(tasks, 1, [&](Index begin, Index end) {
@@ -240,6 +248,8 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
         scratch.threadLevels_[slot >= 0 && static_cast<size_t>(slot) < slots ? static_cast<size_t>(slot) : 0];
     for (Index k = begin; k < end; ++k) {
       BvhPairScratch::TaskPairs& work = scratch.taskPairs_[static_cast<size_t>(k)];
+      work.count = 0;
+      if (limited && stopped.load(std::memory_order_relaxed)) continue;
       std::vector<Task>* current = &mine.level[0];
       std::vector<Task>* following = &mine.level[1];
       if (current->empty()) current->resize(1);
@@ -253,7 +263,10 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
       }
       BvhNode<S> pseudoA{}, pseudoB{};
       pseudoA.box[1] = pseudoB.box[1] = emptyBox<S>();
+      if (limited && leafTotal.fetch_add(found, std::memory_order_relaxed) + found > limit)
+        stopped.store(true, std::memory_order_relaxed);
       while (count > 0) {
+        if (limited && stopped.load(std::memory_order_relaxed)) break;
         const size_t bound = 4 * static_cast<size_t>(count);  // a pair has at most 4 subtasks
         if (following->size() < bound) following->resize(bound);
         if (mine.leaves.size() < static_cast<size_t>(found) + bound)
@@ -294,7 +307,11 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
         found += f;
         count = n;
         std::swap(current, following);
+        if (limited && (leafTotal.fetch_add(f, std::memory_order_relaxed) + f > limit ||
+                        nodeTotal.fetch_add(n, std::memory_order_relaxed) + n > limit))
+          stopped.store(true, std::memory_order_relaxed);
       }
+      if (limited && stopped.load(std::memory_order_relaxed)) continue;
       // The filter and the slot -> triangle mapping, in place, then the task's own copy.
       Index kept = 0;
       for (Index i = 0; i < found; ++i) {
@@ -323,6 +340,7 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
     for (auto& level : t.level)
       if (level.size() < levelSize) level.resize(levelSize);
   }
+  if (limited && stopped.load(std::memory_order_relaxed)) return false;
   size_t total = 0;
   for (Index k = 0; k < tasks; ++k) total += static_cast<size_t>(scratch.taskPairs_[static_cast<size_t>(k)].count);
   out.reserve(total);
@@ -331,6 +349,7 @@ void TriangleBvh<S>::pairQuery(const TriangleBvh& other, const Vec3Array<S>* x, 
     out.insert(out.end(), work.pairs.begin(), work.pairs.begin() + work.count);
   }
   sortPairs(out, scratch.keys_, scratch.keysSwap_, scratch.histogram_);
+  return true;
 }
 
 template <class S>
@@ -354,9 +373,11 @@ void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>& out, BvhPairScratch& s
 }
 
 template <class S>
-void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
-                                          std::span<const std::uint8_t> skipWithin) const {
-  pairQuery<true, false, false>(*this, nullptr, nullptr, out, scratch, exec, skipWithin);
+bool TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>& out, BvhPairScratch& scratch, const Executor& exec,
+                                          std::span<const std::uint8_t> skipWithin, std::int64_t limit) const {
+  if (limit < 0)
+    throw std::invalid_argument("TriangleBvh::selfOverlappingPairs: limit must be >= 0, got " + std::to_string(limit));
+  return pairQuery<true, false, false>(*this, nullptr, nullptr, out, scratch, exec, skipWithin, limit);
 }
 
 template <class S>
@@ -374,8 +395,8 @@ void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>& x, std::vector<Tr
   template void TriangleBvh<S>::intersectingPairs(const TriangleBvh&, const Vec3Array<S>&, const Vec3Array<S>&,        \
                                                   std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const; \
   template void TriangleBvh<S>::selfPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&) const;         \
-  template void TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&,     \
-                                                     std::span<const std::uint8_t>) const;                             \
+  template bool TriangleBvh<S>::selfOverlappingPairs(std::vector<TrianglePair>&, BvhPairScratch&, const Executor&,     \
+                                                     std::span<const std::uint8_t>, std::int64_t) const;               \
   template void TriangleBvh<S>::selfIntersectingPairs(const Vec3Array<S>&, std::vector<TrianglePair>&,                 \
                                                       BvhPairScratch&, const Executor&) const;
 WEFT_INSTANTIATE_QUERIES(float)

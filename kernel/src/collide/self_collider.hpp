@@ -33,8 +33,15 @@ class SelfCollider {
   /// the obstacle each particle rests on in this chunk, or zero. A contact's response does
   /// not push such a particle into its obstacle; the other side of the contact takes that
   /// share (a cloth lying on the floor is as immovable downwards as the floor).
+  /// When a gathering meets more candidates than the options' maxCandidatesPerTriangle
+  /// allows, it stops there: the chunk is left unresolved (x1 and v1 partly responded to),
+  /// overflowed() is true until the next resolve, and the pushes kept for the next skin
+  /// boxes are the last resolved chunk's (the caller retries a shorter chunk or fails the
+  /// step).
   SelfCollisionStats resolve(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
                              double h, const Executor& exec, const double* supports = nullptr);
+  /// Whether the last resolve stopped at the candidate limit.
+  bool overflowed() const { return overflowed_; }
 
   const SelfCollisionOptions& options() const { return options_; }
   /// The skin, m (see the design note): the least a vertex's skin box extends beyond its
@@ -93,12 +100,13 @@ class SelfCollider {
   bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
   /// The mean of x's rows, summed in a fixed order.
   std::array<double, 3> centroid(const Vec3Array<S>& x, const Executor& exec);
-  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates.
-  void gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
+  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates; false (and
+  /// no candidates) past the limit.
+  bool gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                         SelfCollisionStats& stats);
   /// Advancement on every candidate for the chunk x0 -> x1 into blocks_, with the failsafe's
-  /// flags.
-  void detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
+  /// flags; false when a gathering passed the limit.
+  bool detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w, const Executor& exec,
               SelfCollisionStats& stats);
   /// Sizes the blocks and flags for the candidate list in pairs_.
   void useCandidates();
@@ -112,8 +120,8 @@ class SelfCollider {
   /// The normal cones of every BVH node for vertices anywhere in their skin boxes, and the
   /// flat regions (flat_) among the connected nodes.
   void findFlatRegions(const Executor& exec);
-  /// resolve's passes and failsafe.
-  void resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
+  /// resolve's passes and failsafe; false when a gathering passed the limit.
+  bool resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w, double h,
                      const Executor& exec, const double* supports, SelfCollisionStats& stats);
   /// Gauss-Seidel over the contacts found, in block order; returns the largest
   /// displacement of a vertex (m, as stored). `supports` as resolve's.
@@ -186,6 +194,7 @@ class SelfCollider {
   std::vector<Cone> leafCones_;            // (triangles, by slot) likewise
   std::vector<Aabb<S>> sweptBox_;          // (n) each vertex's box over the chunk (one per vertex: read by index)
   bool candidatesValid_ = false;
+  bool overflowed_ = false;
   bool onlyMoved_ = false;           // this pass tests only candidates with a moved vertex (or a hit)
   std::vector<std::uint8_t> moved_;  // (n) moved by the last response or failsafe round
   std::vector<std::uint8_t> blockFlags_;

@@ -530,10 +530,10 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
 }
 
 template <class S>
-void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
+bool SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
                              const Executor& exec, SelfCollisionStats& stats) {
   if (!candidatesCover(x0, x1, exec)) {
-    gatherCandidates(x0, x1, exec, stats);
+    if (!gatherCandidates(x0, x1, exec, stats)) return false;
     onlyMoved_ = false;  // new candidates: test them all
   }
   ++stats.passes;
@@ -561,6 +561,7 @@ void SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
     for (Index k = kb; k < ke; ++k) detectBlock(k, x0, x1, w, all);
   });
   for (Index k = 0; k < blocksUsed_; ++k) stats.tests += blocks_[static_cast<size_t>(k)].tests;
+  return true;
 }
 
 template <class S>
@@ -733,7 +734,12 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
   if (bvh_.triangleCount() < 2) return stats;
   for (const Index j : touched_) touchedFlag_[static_cast<size_t>(j)] = 0;  // (left by a chunk that threw)
   touched_.clear();
-  resolvePasses(x0, x1, v1, w, h, exec, supports, stats);
+  overflowed_ = !resolvePasses(x0, x1, v1, w, h, exec, supports, stats);
+  if (overflowed_) {  // the chunk will be retried or the step failed: the last chunk's pushes stay
+    for (const Index j : touched_) touchedFlag_[static_cast<size_t>(j)] = 0;
+    touched_.clear();
+    return stats;
+  }
   // What the response and the failsafe did to each vertex they moved (touch): the next
   // gathering's skin covers as much again (kPush). The others were not pushed.
   for (const Index j : lastTouched_)
@@ -750,12 +756,12 @@ SelfCollisionStats SelfCollider<S>::resolve(const Vec3Array<S>& x0, Vec3Array<S>
 }
 
 template <class S>
-void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
+bool SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Vec3Array<S>& v1, const ScalarArray<S>& w,
                                     double h, const Executor& exec, const double* supports, SelfCollisionStats& stats) {
   for (int pass = 0;; ++pass) {
     const bool last = pass == options_.iterations;  // then the failsafe acts on what this pass finds
     onlyMoved_ = pass > 0;
-    detect(x0, x1, w, exec, stats);
+    if (!detect(x0, x1, w, exec, stats)) return false;
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
     bool any = false, guards = false;
     double margin = std::numeric_limits<double>::infinity();
@@ -765,7 +771,7 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
       guards = guards || block.guards > 0;
       margin = std::min(margin, block.margin);
     }
-    if (!any) return;                            // no pair within the thickness / 2: nothing can intersect
+    if (!any) return true;                       // no pair within the thickness / 2: nothing can intersect
     margin = std::min(margin, 0.5 * thinnest_);  // (the pairs not in contact: proven >= their thickness / 2)
     if (!last) {
       // Converged: no pair came within its failsafe threshold, so every pair stayed at
@@ -773,7 +779,7 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
       // a quarter of that (a distance changes by at most twice the largest displacement):
       // nothing intersects, and further passes would only move vertices by less.
       const double moved = respond(x1, v1, w, h, supports, stats);
-      if (!guards && 2 * moved < 0.5 * margin) return;
+      if (!guards && 2 * moved < 0.5 * margin) return true;
       continue;
     }
     break;
@@ -815,9 +821,10 @@ void SelfCollider<S>::resolvePasses(const Vec3Array<S>& x0, Vec3Array<S>& x1, Ve
       break;
     }
     onlyMoved_ = true;
-    detect(x0, x1, w, exec, stats);
+    if (!detect(x0, x1, w, exec, stats)) return false;
     std::fill(moved_.begin(), moved_.end(), std::uint8_t{0});
   }
+  return true;
 }
 
 template class SelfCollider<float>;

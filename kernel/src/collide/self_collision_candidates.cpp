@@ -75,7 +75,7 @@ bool SelfCollider<S>::candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>
 }
 
 template <class S>
-void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
+bool SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                                        SelfCollisionStats& stats) {
   const Index n = model_->particleCount();
   exec.parallelFor(n, kVertexGrain, [&](Index begin, Index end) {
@@ -93,14 +93,20 @@ void SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
   gatheredCentroid_ = centroid(x1, exec);
   const bool cull = !flat_.empty();
   if (cull) findFlatRegions(exec);
-  bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
-                            cull ? std::span<const std::uint8_t>(flat_) : std::span<const std::uint8_t>());
+  const std::int64_t limit = static_cast<std::int64_t>(options_.maxCandidatesPerTriangle) * bvh_.triangleCount();
+  if (!bvh_.selfOverlappingPairs(pairs_, scratch_, exec,
+                                 cull ? std::span<const std::uint8_t>(flat_) : std::span<const std::uint8_t>(),
+                                 limit)) {
+    candidatesValid_ = false;  // (pairs_ is empty: the next chunk gathers)
+    return false;
+  }
   ++stats.rebuilds;
   stats.candidates += static_cast<std::int64_t>(pairs_.size());
   useCandidates();
   exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
     for (Index k = kb; k < ke; ++k) expandBlock(k);
   });
+  return true;
 }
 
 template <class S>
@@ -238,7 +244,7 @@ std::size_t SelfCollider<S>::listBytes() const {
 #define WEFT_INSTANTIATE_CANDIDATES(S)                                                                       \
   template std::array<double, 3> SelfCollider<S>::centroid(const Vec3Array<S>&, const Executor&);            \
   template bool SelfCollider<S>::candidatesCover(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&); \
-  template void SelfCollider<S>::gatherCandidates(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&, \
+  template bool SelfCollider<S>::gatherCandidates(const Vec3Array<S>&, const Vec3Array<S>&, const Executor&, \
                                                   SelfCollisionStats&);                                      \
   template void SelfCollider<S>::useCandidates();                                                            \
   template void SelfCollider<S>::expandBlock(Index);                                                         \

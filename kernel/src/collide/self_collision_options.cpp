@@ -37,6 +37,9 @@ void validateSelfCollision(const SelfCollisionOptions& o, const char* where) {
     throw std::invalid_argument(w + ".friction must be finite and >= 0, got " + detail::number(o.friction));
   if (o.iterations < 1 || o.iterations > 64)
     throw std::invalid_argument(w + ".iterations must be in [1, 64], got " + std::to_string(o.iterations));
+  if (o.maxCandidatesPerTriangle < 1 || o.maxCandidatesPerTriangle > (1 << 20))
+    throw std::invalid_argument(w + ".maxCandidatesPerTriangle must be in [1, 1048576], got " +
+                                std::to_string(o.maxCandidatesPerTriangle));
   for (size_t i = 0; i < o.particleThickness.size(); ++i)
     if (!(std::isfinite(o.particleThickness[i]) && o.particleThickness[i] > 0))
       throw std::invalid_argument(w + ".particleThickness[" + std::to_string(i) + "] must be finite and > 0 (m), got " +

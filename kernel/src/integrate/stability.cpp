@@ -30,6 +30,8 @@ const char* stepCodeName(StepCode code) {
       return "step-size-underflow";
     case StepCode::CapacityExceeded:
       return "capacity-exceeded";
+    case StepCode::TooManyCandidates:
+      return "too-many-candidates";
   }
   return "unknown";
 }
@@ -53,6 +55,16 @@ std::string StepStatus::message() const {
     case StepCode::CapacityExceeded:
       out << "the rigid-body pair buffer (capacity " << value << ") is full in the step starting at t = " << time
           << " s: raise RigidOptions::maxPairs";
+      break;
+    case StepCode::TooManyCandidates:
+      out << "self-collision met more than " << value
+          << " candidate pairs per triangle (SelfCollisionOptions::maxCandidatesPerTriangle; "
+             "self_collision.max_candidates_per_triangle in a scene file) in the step starting at t = "
+          << time
+          << " s, in chunks halved as often as CollisionOptions::maxHalvings allows: the step moves the cloth so far "
+             "that nearly all its swept boxes overlap (a cloth started deep inside an obstacle is pushed out at "
+             "once), and the work would grow with the square of the triangles; start the cloth outside the "
+             "obstacles, reduce dt, or raise the limit";
       break;
     case StepCode::Overstretched:
       out << "overstretched spring " << spring << " (particle " << particle << "): length is " << value

@@ -16,12 +16,13 @@
 namespace weft::io_detail {
 
 void readSelfCollision(const Reader& r, const Json& j, const std::string& f, SelfCollisionOptions& o) {
-  r.object(j, f, {"thickness", "friction", "iterations", "cull_flat_regions"});
+  r.object(j, f, {"thickness", "friction", "iterations", "cull_flat_regions", "max_candidates_per_triangle"});
   o.enabled = true;
   o.cullFlatRegions = r.boolean(j, f, "cull_flat_regions", o.cullFlatRegions);
   o.thickness = r.anyNumber(j, f, "thickness", o.thickness);
   o.friction = r.anyNumber(j, f, "friction", o.friction);
   o.iterations = r.anyInt(j, f, "iterations", o.iterations);
+  o.maxCandidatesPerTriangle = r.anyInt(j, f, "max_candidates_per_triangle", o.maxCandidatesPerTriangle);
   r.kernelRules(j, f, f + ".", [&] { validateSelfCollision(o, f.c_str()); });
 }
 

@@ -203,7 +203,7 @@ void Simulation<S>::restore(std::string_view bytes, const std::string& source) {
     if (!std::isfinite(state_.time) || !std::isfinite(clockStart_)) in.fail("the time is not finite");
     if (stepCount_ < 0) in.fail("a negative step count, " + std::to_string(stepCount_));
     const int code = static_cast<int>(status_.code);
-    if (code < 0 || code > static_cast<int>(StepCode::CapacityExceeded))
+    if (code < 0 || code > static_cast<int>(StepCode::TooManyCandidates))
       in.fail("an unknown step status, " + std::to_string(code));
     in.checkFlag(lastWork_, offsetof(StepWork, failed), "the last step's work");
     in.checkFlag(totalWork_, offsetof(StepWork, failed), "the run's work");

@@ -460,6 +460,24 @@ StepStatus Simulation<S>::stepWithContacts() {
         selfSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - selfStart).count();
     }
     lastSelf_ += self;
+    if (self_ && self_->overflowed()) {
+      // The chunk is not resolved: its swept boxes overlap too much. A shorter chunk sweeps
+      // less (the candidates of a fast cloth fall with the square of the chunk); at the
+      // halving limit the step fails.
+      if (halvings < co.maxHalvings) {
+        rejectChunk();
+        ++halvings;
+        ++lastCollision_.rollbacks;
+        continue;
+      }
+      status_ = StepStatus{};
+      status_.code = StepCode::TooManyCandidates;
+      status_.value = static_cast<double>(self_->options().maxCandidatesPerTriangle);
+      status_.time = state_.time;
+      rejectChunk();
+      ok = false;
+      break;
+    }
     if (found.contacts > 0 || found.edgeContacts > 0 || self.contacts > 0 || self.frozen > 0) {
       integrator_->reset();  // the response changed the candidate it may have cached
       // The response moved particles after the integrator's candidate was checked: what it

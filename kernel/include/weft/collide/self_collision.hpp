@@ -90,6 +90,19 @@
 //               at the price of the stopped vertices' momentum; SelfCollisionStats::frozen
 //               says how often.) A pair whose vertices are all pinned or kinematic cannot be
 //               stopped and is counted as unresolved.
+//   limit       A gathering lists at most maxCandidatesPerTriangle x triangles pairs (and
+//               meets at most as many overlapping pairs of BVH nodes). A cloth keeps about
+//               3 to 30 per triangle however it folds (tests and benchmarks: fold 6,
+//               two-cloths 9, twist wrung tight 33, the folded 128² cloth unculled 55).
+//               Far more comes from a chunk whose swept boxes are long: a cloth moving many
+//               times its spacing in one chunk (the count grows with the square of the
+//               motion), or one pushed out across the scene at once (started deep inside an
+//               obstacle), where the pass would cost the square of the triangles. The query
+//               stops as soon as its count passes the limit; the Simulation rolls the chunk
+//               back and retries it halved, as for a deep penetration (a fast cloth's
+//               candidates fall with the square of the chunk), and at
+//               CollisionOptions::maxHalvings fails the step with
+//               StepCode::TooManyCandidates, the state as it was.
 //
 // Work: gathering and detection run in parallel over fixed blocks of triangle pairs, each
 // block writing its own lists; the lists are concatenated in block order and the response runs serially
@@ -121,6 +134,8 @@ struct SelfCollisionOptions {
                                           // > 0), a cloth's own: a pair of primitives keeps the mean of theirs
   bool cullFlatRegions = true;            // normal-cone culling of flat, connected regions (see the design note); off:
                                           // every pair of triangles whose boxes overlap is a candidate
+  int maxCandidatesPerTriangle = 256;     // (1 .. 2^20) a gathering listing more candidate pairs than this x the
+                                          // triangles fails the step (StepCode::TooManyCandidates; the design note)
 };
 
 /// Throws std::invalid_argument naming the field (prefixed by `where`) and the value.

@@ -41,6 +41,8 @@ enum class StepCode {
   Overstretched,      // a spring exceeds maxStretch x rest length
   StepSizeUnderflow,  // adaptive error control gave up (IntegratorOptions minSubstep / maxSubsteps)
   CapacityExceeded,   // a buffer sized at construction is full (RigidOptions::maxPairs); `value` is the capacity
+  TooManyCandidates,  // self-collision listed more candidate pairs than its limit; `value` is the limit per
+                      // triangle (SelfCollisionOptions::maxCandidatesPerTriangle)
 };
 const char* stepCodeName(StepCode code);
 
