@@ -850,6 +850,27 @@ TEST(AdversarialMesh, CoordinatesTooLargeToSquareAreRefusedByPrecision) {
               AllOf(HasSubstr("mesh file 'nan.obj'"), HasSubstr("vertices[1].x must be finite, got nan")));
 }
 
+TEST(AdversarialMesh, ACoordinateThatCannotHoldTheEdgesIsRefusedByPrecision) {
+  // A 1 cm quad moved 1e5 m away: in float a coordinate there steps by 8 mm, and rounding
+  // would change its edges by more than a tenth, so it is refused naming the edge's vertices
+  // and the builder is left as it was; double holds it.
+  const TriangleMesh quad =
+      loadCleanMeshFromMemory("v 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nv 0.01 0.01 0\nf 1 2 3\nf 2 4 3\n", "small.obj");
+  ClothMeshSpec spec;
+  spec.translate = {1e5, 0, 0};
+  ModelBuilder<float> single;
+  EXPECT_THAT(thrownMessage<std::invalid_argument>([&] { (void)addClothMesh(single, quad, spec); }),
+              AllOf(HasSubstr("addClothMesh: the largest |coordinate| of the ends of the structural spring between "
+                              "mesh vertices[0] and vertices[1] (scaled and translated) must be at most "),
+                    HasSubstr("m in float precision (the spring's rest length, 0.00999999")));
+  EXPECT_EQ(single.particleCount(), 0);
+  spec.translate = {1e3, 0, 0};
+  EXPECT_NO_THROW((void)addClothMesh(single, quad, spec));
+  spec.translate = {1e5, 0, 0};
+  ModelBuilder<double> twice;
+  EXPECT_NO_THROW((void)addClothMesh(twice, quad, spec));
+}
+
 TEST(AdversarialMesh, OnlyDegenerateTrianglesLeaveNothingToBuild) {
   // A thousand triangles of zero area: collinear corners, repeated corners, coincident points.
   std::string obj;

@@ -12,6 +12,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/text.hpp"
 #include "support/test_support.hpp"
 #include "weft/effects/force_field.hpp"
 
@@ -341,6 +342,41 @@ TYPED_TEST(ModelTest, BadParticlesThrow) {
   EXPECT_NO_THROW(b.addParticle({0, 0, 0}, 1.0, {kMaxSpeed, 0, 0}));
 }
 
+// ModelBuilder::build holds every spring to the rule the whole-object builders check: its
+// ends within rest / (10 sqrt(3) epsilon) of the origin, where rounding to S changes its
+// length by at most a tenth. A spring of rest length 0 has no length to keep.
+TYPED_TEST(ModelTest, BuildRefusesASpringThePrecisionCannotKeepTheLengthOf) {
+  using S = TypeParam;
+  const double eps = static_cast<double>(std::numeric_limits<S>::epsilon());
+  const double reach = 0.01 / (10 * std::sqrt(3.0) * eps);  // a 1 cm spring
+  const auto build = [](double x, double rest) -> std::string {
+    ModelBuilder<S> b;
+    b.addParticle({0, 0, 0}, 1);
+    b.addParticle({x, 0, 0}, 1);
+    b.addParticle({x, 0.01, 0}, 1);
+    b.addSpring(0, 1, SpringMaterial{10, 0}, SpringClass::Structural, 1.0);
+    b.addSpring(1, 2, SpringMaterial{10, 0}, SpringClass::Structural, rest);
+    try {
+      (void)b.build();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "built";
+  };
+  EXPECT_EQ(build(0.999 * reach, 0.01), "built");
+  const std::string what = build(1.001 * reach, 0.01);
+  EXPECT_NE(what.find("ModelBuilder::build: the largest |coordinate| of the ends of spring [1] (particles 1 and 2) "
+                      "must be at most " +
+                      detail::number(reach) + " m in "),
+            std::string::npos)
+      << what;
+  EXPECT_NE(
+      what.find("use double precision or build the model nearer the origin), got " + detail::number(1.001 * reach)),
+      std::string::npos)
+      << what;
+  EXPECT_EQ(build(1.001 * reach, 0), "built");  // rest length 0: nothing to keep
+}
+
 TYPED_TEST(ModelTest, BadSpringsThrow) {
   using S = TypeParam;
   ModelBuilder<S> b;
@@ -646,6 +682,30 @@ TYPED_TEST(ModelTest, RopesAndGridsThePrecisionCannotHoldAreRefusedBeforeAnythin
               addClothGrid(b, grid);
             }).find("ClothGridSpec.width x height must be at most 268435455 particles, got 70000 x 70000"),
             std::string::npos);
+  // A grid or rope whose coordinates the precision cannot hold its spacing at: refused for
+  // float at 1e6 m (a coordinate steps by 6 cm there, more than the 4 cm spacing), held in
+  // double; the reach is spacing / (10 sqrt(3) epsilon).
+  const double reach = 0.04 / (10 * std::sqrt(3.0) * static_cast<double>(std::numeric_limits<S>::epsilon()));
+  grid = gridSpec(8, 8);
+  grid.spacing = 0.04;
+  grid.origin = {single ? 1e6 : 1e15, 0, 0};
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) { addClothGrid(b, grid); })
+                .find("ClothGridSpec extent (the largest |coordinate| of a particle) must be at most " +
+                      detail::number(reach) + " m in " + (single ? "float" : "double") +
+                      " precision (the spring's rest length, 0.04 m, / (10 sqrt(3) epsilon)"),
+            std::string::npos);
+  rope = {};
+  rope.origin = {0, 0, -1.01 * reach * (rope.length / (rope.particleCount - 1)) / 0.04};
+  EXPECT_NE(refused([&](ModelBuilder<S>& b) {
+              addRope(b, rope);
+            }).find("RopeSpec extent (the largest |coordinate| of a particle) must be at most "),
+            std::string::npos);
+  for (const double at : {0.99 * reach - 0.28, single ? 1e4 : 1e12}) {  // (the grid's far corner: 0.28 m further)
+    grid.origin = {at, 0, 0};
+    ModelBuilder<S> held;
+    addClothGrid(held, grid);
+    EXPECT_EQ(held.build().model.particleCount(), 64) << at;
+  }
   // Within the bounds, both build.
   rope = {};
   rope.totalMass = 1e-30;

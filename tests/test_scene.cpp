@@ -688,6 +688,14 @@ TEST(SceneBadFiles, MeshObstaclesThatCannotBeReadFailAtAssembly) {
   const SceneSpec light = parseScene(R"({"name": "light", "bodies": [{"type": "rope", "velocity": [0, 299792458, 0]}],
                                          "dt": 0.001, "steps": 1})");
   EXPECT_NO_THROW(assembleScene<double>(light));
+  // A cloth whose spacing the precision cannot hold where it is: a 4 cm grid at 1e6 m, where
+  // float steps by 6 cm. Refused in float naming the body; double holds it.
+  const SceneSpec far = parseScene(R"({"name": "far", "dt": 0.001, "steps": 1,
+      "bodies": [{"type": "cloth_grid", "width": 8, "height": 8, "spacing": 0.04, "origin": [1e6, 0, 0]}]})");
+  EXPECT_THAT(sceneError([&] { assembleScene<float>(far); }),
+              HasSubstr("far: bodies[0] (cloth_grid): ClothGridSpec extent (the largest |coordinate| of a particle) "
+                        "must be at most 19372.660347704994 m in float precision"));
+  EXPECT_NO_THROW(assembleScene<double>(far));
 }
 
 TEST(SceneReader, DefaultsAndDuration) {

@@ -338,6 +338,16 @@ TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
   bad.v(4, 0) = S(1e30);
   EXPECT_THAT(refusal(bad), ::testing::StartsWith("Simulation::setState: state.v(4) must be a speed of at most "
                                                   "299792458 m/s (the speed of light), got (1"));
+  // Positions beyond what the precision simulates: squares of distances that overflow, and
+  // (in float) a cloth moved so far that rounding changes its springs' lengths by more than
+  // a tenth: the 8x8 flag's 1/7 m spacing reaches 69 km in float, 3.7e13 m in double).
+  bad = sim.state();
+  bad.x(3, 2) = S(sizeof(S) == sizeof(float) ? 2e18 : 2e150);
+  EXPECT_THAT(refusal(bad), ::testing::StartsWith("Simulation::setState: state.x(3, 2) must be within +-"));
+  bad = sim.state();
+  for (Index i = 0; i < bad.x.rows(); ++i) bad.x(i, 0) += S(sizeof(S) == sizeof(float) ? 1e5 : 1e14);
+  EXPECT_THAT(refusal(bad), ::testing::StartsWith("Simulation::setState: the largest |coordinate| of the ends of "
+                                                  "spring ["));
   // The clock drives kinematic pins and the wind: a clock that is not a number is refused too.
   for (const double time : {std::nan(""), std::numeric_limits<double>::infinity(), -HUGE_VAL}) {
     bad = sim.state();
@@ -354,6 +364,10 @@ TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
     EXPECT_NE(std::string(e.what()).find("3"), std::string::npos) << e.what();
   }
   EXPECT_EQ(stateHash(sim.state()), hash) << "a rejected state must leave the simulation alone";
+  EXPECT_TRUE(sim.step().ok());
+  State<S> moved = sim.state();  // far, but within the reach
+  for (Index i = 0; i < moved.x.rows(); ++i) moved.x(i, 0) += S(sizeof(S) == sizeof(float) ? 1e3 : 1e11);
+  EXPECT_EQ(refusal(moved), "accepted");
   EXPECT_TRUE(sim.step().ok());
 }
 

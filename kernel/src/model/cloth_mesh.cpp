@@ -164,6 +164,25 @@ ClothMeshStats addClothMesh(ModelBuilder<S>& builder, const TriangleMesh& mesh, 
     std::sort(bendPairs.begin(), bendPairs.end());
   }
 
+  // --- Every spring's length kept under rounding to S (ModelBuilder::build's rule, checked
+  // here so that the message names the mesh's vertices).
+  const auto resolved = [&](std::uint64_t key, const char* kind) {
+    const Index i = static_cast<Index>(key >> 32), j = static_cast<Index>(key & 0xffffffffu);
+    const Vec3d &a = p[static_cast<size_t>(i)], &b = p[static_cast<size_t>(j)];
+    const double rest = std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z));
+    const double farthest =
+        std::max({std::abs(a.x), std::abs(a.y), std::abs(a.z), std::abs(b.x), std::abs(b.y), std::abs(b.z)});
+    if (!Limits::springResolved(rest, farthest))
+      reject(std::string("the largest |coordinate| of the ends of the ") + kind + " spring between mesh vertices[" +
+                 std::to_string(i) + "] and vertices[" + std::to_string(j) + "]" +
+                 (spec.scale == 1 && spec.translate.x == 0 && spec.translate.y == 0 && spec.translate.z == 0
+                      ? ""
+                      : " (scaled and translated)"),
+             farthest, Limits::springRule(rest));
+  };
+  for (const std::uint64_t e : edges) resolved(e, "structural");
+  for (const auto& pair : bendPairs) resolved(pair.second, "bend");
+
   // --- Add: particles, structural springs, bend springs, triangles.
   ClothMeshStats stats;
   stats.firstParticle = first;

@@ -218,6 +218,14 @@ ModelAndState<S> ModelBuilder<S>::build() {
     (void)scalar(rest_[s], "restLength of spring", s);
     (void)scalar(stiffness_[s], "stiffness of spring", s);
     (void)scalar(damping_[s], "damping of spring", s);
+    const Index a = springA_[s], b = springB_[s];
+    const double farthest = std::max(
+        {std::abs(px_[a]), std::abs(py_[a]), std::abs(pz_[a]), std::abs(px_[b]), std::abs(py_[b]), std::abs(pz_[b])});
+    if (!Limits::springResolved(rest_[s], farthest))
+      reject("ModelBuilder::build",
+             "the largest |coordinate| of the ends of spring [" + std::to_string(s) + "] (particles " +
+                 std::to_string(a) + " and " + std::to_string(b) + ")",
+             farthest, Limits::springRule(rest_[s]));
   }
   const bool isGrid = grid_ && checkGridLayout(*grid_);
 

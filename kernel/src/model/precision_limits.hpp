@@ -33,6 +33,26 @@ struct PrecisionLimits {
            " precision (the squares of spring lengths must stay normal numbers)";
   }
 
+  /// How far from the origin a spring of rest length `rest` may lie: rounding a coordinate c
+  /// to S moves it by at most eps |c| / 2, so the difference of two ends within r of the
+  /// origin errs by at most eps r per axis and the length by sqrt(3) eps r. Within
+  /// rest / (10 sqrt(3) eps) that is at most a tenth of the rest length; farther, the spring
+  /// cannot hold its shape (a float cloth of 4 cm spacing reaches 19 km; at 1e6 m a
+  /// coordinate steps by 6 cm and the cloth springs apart from rest). Zero for a spring of
+  /// rest length 0, which has no length to keep (the rule then does not apply).
+  static double springReach(double rest) {
+    return rest / (10 * std::sqrt(3.0) * static_cast<double>(std::numeric_limits<S>::epsilon()));
+  }
+  /// Whether a spring of rest length `rest` whose ends' largest |coordinate| is `farthest`
+  /// keeps its length under rounding to S (springReach).
+  static bool springResolved(double rest, double farthest) { return !(rest > 0) || farthest <= springReach(rest); }
+  /// What springResolved() requires, as messages say it.
+  static std::string springRule(double rest) {
+    return "at most " + number(springReach(rest)) + " m in " + kName + " precision (the spring's rest length, " +
+           number(rest) + " m, / (10 sqrt(3) epsilon): farther from the origin, rounding the coordinates to " + kName +
+           " changes its length by more than a tenth; use double precision or build the model nearer the origin)";
+  }
+
   static bool representable(double value) { return std::abs(value) <= kLargest; }
   static bool coordinate(double value) { return std::abs(value) <= kFarthest; }
   /// A mass whose inverse (the integrators' 1/m) is finite in S.

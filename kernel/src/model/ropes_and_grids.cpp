@@ -31,18 +31,25 @@ void requirePositive(const char* field, double value) {
 /// corners of the object's bounding box within the precision's coordinate bound, and the
 /// spring materials within S's range (the grid layout also holds them converted to S).
 template <class S>
-void checkPrecision(const std::string& spec, double mass, const Vec3d& from, const Vec3d& to,
+void checkPrecision(const std::string& spec, double mass, const Vec3d& from, const Vec3d& to, double shortest,
                     std::initializer_list<std::pair<const char*, const SpringMaterial*>> materials) {
   using Limits = detail::PrecisionLimits<S>;
   const std::string in = std::string(" in ") + Limits::kName + " precision";
   if (!(Limits::representable(mass) && Limits::invertibleMass(mass)))
     detail::rejectField(spec + " particle mass (totalMass / particles)", mass,
                         "such that it and 1/mass are finite" + in);
+  double farthest = 0;
   for (const Vec3d& p : {from, to})
-    for (const double c : {p.x, p.y, p.z})
+    for (const double c : {p.x, p.y, p.z}) {
       if (!Limits::coordinate(c))
         detail::rejectField(spec + " extent (a coordinate of a particle)", c,
                             "within +-" + detail::number(Limits::kFarthest) + " m" + in);
+      farthest = std::max(farthest, std::abs(c));
+    }
+  // (ModelBuilder::build checks every spring; the shortest, checked here, names the object.)
+  if (!Limits::springResolved(shortest, farthest))
+    detail::rejectField(spec + " extent (the largest |coordinate| of a particle)", farthest,
+                        Limits::springRule(shortest));
   for (const auto& entry : materials) {
     const char* name = entry.first;
     const SpringMaterial* material = entry.second;
@@ -93,7 +100,7 @@ void addRope(ModelBuilder<S>& builder, const RopeSpec& spec) {
   const double step = spec.length / static_cast<double>(n - 1);
   const double m = spec.totalMass / static_cast<double>(n);
   checkSpacing<S>("RopeSpec.length / (particleCount - 1)", step);
-  checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, step * static_cast<double>(n - 1)),
+  checkPrecision<S>("RopeSpec", m, spec.origin, along(spec.origin, d, step * static_cast<double>(n - 1)), step,
                     {{"structural", &spec.structural}, {"bend", spec.bendSprings ? &spec.bend : nullptr}});
   for (Index i = 0; i < n; ++i) {
     const double t = step * static_cast<double>(i);
@@ -133,11 +140,11 @@ void addClothGrid(ModelBuilder<S>& builder, const ClothGridSpec& spec) {
     // The grid's far corner, and the two others: the bounding box's extremes are among them.
     const double a = spec.spacing * static_cast<double>(W - 1), b = spec.spacing * static_cast<double>(H - 1);
     const Vec3d corner = along(along(spec.origin, u, a), w, b);
-    checkPrecision<S>("ClothGridSpec", m, spec.origin, corner,
+    checkPrecision<S>("ClothGridSpec", m, spec.origin, corner, spec.spacing,
                       {{"structural", &spec.structural},
                        {"shear", spec.shearSprings ? &spec.shear : nullptr},
                        {"bend", spec.bendSprings ? &spec.bend : nullptr}});
-    checkPrecision<S>("ClothGridSpec", m, along(spec.origin, u, a), along(spec.origin, w, b), {});
+    checkPrecision<S>("ClothGridSpec", m, along(spec.origin, u, a), along(spec.origin, w, b), spec.spacing, {});
   }
   // Exact counts: structural (two families), shear (two), bend (two), two triangles a cell.
   const Index springs = (W - 1) * H + W * (H - 1) + (spec.shearSprings ? 2 * (W - 1) * (H - 1) : 0) +

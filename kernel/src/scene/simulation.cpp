@@ -194,6 +194,29 @@ void Simulation<S>::setState(const State<S>& state) {
     if (!detail::speedWithinLimit(state.v(i, 0), state.v(i, 1), state.v(i, 2)))
       detail::rejectField("Simulation::setState: state.v(" + std::to_string(i) + ")",
                           detail::number3(state.v(i, 0), state.v(i, 1), state.v(i, 2)), detail::speedRule());
+  // Positions the precision can simulate: squares of distances finite, and every spring's
+  // length kept to a tenth under rounding (ModelBuilder::build's rules).
+  using Limits = detail::PrecisionLimits<S>;
+  for (Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!Limits::coordinate(static_cast<double>(state.x(i, c))))
+        detail::rejectField("Simulation::setState: state.x(" + std::to_string(i) + ", " + std::to_string(c) + ")",
+                            static_cast<double>(state.x(i, c)),
+                            std::string("within +-") + detail::number(Limits::kFarthest) + " m in " + Limits::kName +
+                                " precision (the squares of distances between particles must stay finite)");
+  const Springs<S>& springs = model_->springs();
+  for (Index k = 0; k < springs.count(); ++k) {
+    const Index a = springs.a[k], b = springs.b[k];
+    double farthest = 0;
+    for (int c = 0; c < 3; ++c)
+      farthest = std::max(
+          {farthest, std::abs(static_cast<double>(state.x(a, c))), std::abs(static_cast<double>(state.x(b, c)))});
+    const double rest = static_cast<double>(springs.restLength[k]);
+    if (!Limits::springResolved(rest, farthest))
+      detail::rejectField("Simulation::setState: the largest |coordinate| of the ends of spring [" + std::to_string(k) +
+                              "] (particles " + std::to_string(a) + " and " + std::to_string(b) + ")",
+                          farthest, Limits::springRule(rest));
+  }
   // The clock drives kinematic pins, paths and wind: a clock that is not a finite number
   // would put NaN into the positions at the next step.
   detail::requireField(std::isfinite(state.time), "Simulation::setState: state.time", state.time, "finite (s)");
