@@ -511,6 +511,17 @@ TEST(CollideOptions, BadValuesAreRejectedByName) {
   c.meshes[0] = wall();
   c.meshes[0].mesh.triangles.clear();
   EXPECT_NE(message(c).find("at least one triangle"), std::string::npos) << message(c);
+  // A path that turns the mesh: its farthest vertex (the wall's (0, 0, 20), 20 m from the
+  // centre) at most at the speed of light.
+  c.meshes[0] = wall();
+  c.meshes[0].path = KinematicPath{};
+  c.meshes[0].path->angularVelocity = 1.001 * kMaxSpeed / 20;
+  EXPECT_NE(message(c).find("collision.meshes[0] (wall).path.angularVelocity must be at most 14989622.9 rad/s in size "
+                            "(the mesh's farthest vertex, 20 m from the path's center"),
+            std::string::npos)
+      << message(c);
+  c.meshes[0].path->angularVelocity = 0.999 * kMaxSpeed / 20;
+  EXPECT_EQ(message(c), "");
 }
 
 // An obstacle whose surface lies where the precision cannot place a particle to within the

@@ -391,6 +391,17 @@ TEST(KinematicPins, BadPinsAreRejectedByName) {
   noAxis.path.axis = {0, 0, 0};
   noAxis.path.angularVelocity = 1;
   expectRejected(noAxis, "axis");
+  // A spin that drives a pin faster than light: particle 0 turned about a centre 1e6 m away.
+  KinematicPins spin{{0}, {}};
+  spin.path.center = {1e6, 0, 0};
+  spin.path.angularVelocity = 1e3;
+  expectRejected(spin, "path.angularVelocity must be at most 299.");
+  expectRejected(spin, "rad/s in size (its farthest particle, 1");
+  spin.path.angularVelocity = 200;  // 2e8 m/s: within the limit
+  SimulationOptions options;
+  options.threads = 1;
+  options.kinematicPins.push_back(spin);
+  EXPECT_NO_THROW(Simulation<double>(ModelAndState<double>{cloth.model, cloth.state}, options));
 }
 
 TEST(KinematicPins, AFailedStepLeavesTheStateAsItWas) {

@@ -332,6 +332,15 @@ TEST(RigidModelBuild, BadInputNamesTheField) {
   o.bodies[1].motion = BodyMotion::Kinematic;
   o.bodies[1].path.velocity = {0, -3e8, 0};
   expectInvalid(o, "rigid.bodies[1].path.velocity must be a speed of at most 299792458 m/s");
+  o = stackScene(2);  // a kinematic body turned about a centre 1000 m away at 1e6 rad/s: 1e9 m/s
+  o.bodies[1].motion = BodyMotion::Kinematic;
+  o.bodies[1].path.center = {1000, 0, 0};
+  o.bodies[1].path.angularVelocity = 1e6;
+  EXPECT_THAT(message([&] { buildRigidModel(o.bodies); }),
+              AllOf(HasSubstr("rigid.bodies[1].path.angularVelocity must be at most "),
+                    HasSubstr("rad/s in size (the body's farthest point, "), HasSubstr("got 1e+06")));
+  o.bodies[1].path.angularVelocity = 1e5;  // 1e8 m/s
+  EXPECT_NO_THROW(buildRigidModel(o.bodies));
   o = stackScene(2);
   o.bodies[1].angularVelocity = {0, 1e160, 0};  // (|w|^2 I overflows: the step would end in NaN)
   EXPECT_THAT(message([&] { buildRigidModel(o.bodies); }),

@@ -696,6 +696,18 @@ TEST(SceneBadFiles, MeshObstaclesThatCannotBeReadFailAtAssembly) {
               HasSubstr("far: bodies[0] (cloth_grid): ClothGridSpec extent (the largest |coordinate| of a particle) "
                         "must be at most 19372.660347704994 m in float precision"));
   EXPECT_NO_THROW(assembleScene<double>(far));
+  // A pin's path that turns its particles faster than light (1 m from the centre at 1e9
+  // rad/s), and one that moves them so, named as the file spells them.
+  const SceneSpec spin = parseScene(R"({"name": "spin", "dt": 0.001, "steps": 1, "bodies": [{"type": "cloth_grid",
+      "width": 8, "height": 8, "pins": [{"particles": [0, 7], "path": {"angular_velocity": 1e9}}]}]})");
+  EXPECT_THAT(sceneError([&] { assembleScene<double>(spin); }),
+              HasSubstr("spin: bodies[0].pins[0].path.angular_velocity: must be at most 299792458 rad/s in size (the "
+                        "farthest particle it pins, 1 m from the path's center"));
+  EXPECT_THAT(sceneError([&] {
+                parseScene(R"({"name": "fast", "dt": 0.001, "steps": 1, "bodies": [{"type": "cloth_grid",
+                    "pins": [{"particles": [0], "path": {"velocity": [0, 1e300, 0]}}]}]})");
+              }),
+              HasSubstr("bodies[0].pins[0].path.velocity: must be a speed of at most 299792458 m/s"));
 }
 
 TEST(SceneReader, DefaultsAndDuration) {

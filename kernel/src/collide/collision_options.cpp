@@ -129,7 +129,13 @@ void validateCollision(const CollisionOptions& c, const char* where) {
       fail(f + "staticFriction", m.staticFriction, "finite and >= 0");
     if (!(std::isfinite(m.kineticFriction) && m.kineticFriction >= 0 && m.kineticFriction <= m.staticFriction))
       fail(f + "kineticFriction", m.kineticFriction, "finite, >= 0 and <= staticFriction");
-    if (m.path) validateKinematicPath(*m.path, w + f + "path.");
+    if (m.path) {
+      validateKinematicPath(*m.path, w + f + "path.");
+      double reach = 0;  // the farthest vertex from the path's centre
+      for (const Vec3d& p : m.mesh.vertices)
+        reach = std::max(reach, std::hypot(p.x - m.path->center.x, p.y - m.path->center.y, p.z - m.path->center.z));
+      validateKinematicSpin(*m.path, reach, w + f + "path.", "the mesh's farthest vertex");
+    }
   }
 }
 

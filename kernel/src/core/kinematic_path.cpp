@@ -74,4 +74,18 @@ void validateKinematicPath(const KinematicPath& p, const std::string& where) {
     throw std::invalid_argument(where + "endTime must be >= startTime (s), got " + std::to_string(p.endTime));
 }
 
+bool kinematicSpinWithinLimit(const KinematicPath& path, double reach) {
+  return std::abs(path.angularVelocity) * reach <= kMaxSpeed;
+}
+
+std::string kinematicSpinRule(double reach, const std::string& what) {
+  return "at most " + detail::number(kMaxSpeed / reach) + " rad/s in size (" + what + ", " + detail::number(reach) +
+         " m from the path's center, moving at " + detail::speedRule() + ")";
+}
+
+void validateKinematicSpin(const KinematicPath& path, double reach, const std::string& where, const std::string& what) {
+  if (!kinematicSpinWithinLimit(path, reach))
+    detail::rejectField(where + "angularVelocity", path.angularVelocity, kinematicSpinRule(reach, what));
+}
+
 }  // namespace weft

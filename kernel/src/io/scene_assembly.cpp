@@ -91,6 +91,16 @@ AssembledScene<S> assembleScene(const SceneSpec& scene) {
       selections.push_back(pinSelection(pin, count, position));
       for (const Index i : selections.back()) builder.pin(first + i);
       if (pin.path) {
+        double reach = 0;  // the farthest pinned particle from the path's centre
+        for (const Index i : selections.back()) {
+          const Vec3d p = position(i);
+          reach =
+              std::max(reach, std::hypot(p.x - pin.path->center.x, p.y - pin.path->center.y, p.z - pin.path->center.z));
+        }
+        if (!kinematicSpinWithinLimit(*pin.path, reach))
+          throw SceneError(pf + ".path.angular_velocity: must be " +
+                           kinematicSpinRule(reach, "the farthest particle it pins") + ", got " +
+                           fmt(pin.path->angularVelocity));
         KinematicPins kinematic;
         for (const Index i : selections.back()) kinematic.particles.push_back(first + i);
         kinematic.path = *pin.path;

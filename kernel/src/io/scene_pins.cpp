@@ -207,6 +207,9 @@ KinematicPath readPath(const Reader& r, const Json& j, const std::string& f) {
   if (p.angularVelocity != 0 && !normalised(p.axis, unit))
     r.fail(Reader::join(f, "axis"),
            "must be a vector of finite non-zero length when angular_velocity is not 0, got " + fmt(p.axis));
+  // The kernel's rules (a speed within kMaxSpeed ...), named as this file spells them.
+  r.kernelRules(j, f, "path.", [&] { validateKinematicPath(p, "path."); },
+                {{"startTime", "start"}, {"endTime", "end"}});
   return p;
 }
 

@@ -266,6 +266,15 @@ std::shared_ptr<const RigidModel> buildRigidModel(const std::vector<RigidBodyDes
       require(detail::spinWithinLimit(d.angularVelocity, reach), f + "angularVelocity", detail::spinRule(reach),
               text(d.angularVelocity));
     }
+    if (d.motion == BodyMotion::Kinematic) {
+      // Its path turns every point of it about the path's centre: the farthest point (at
+      // most the body's position's distance, plus its centre of mass's offset, plus its
+      // reach) at most at the speed of light.
+      const Vec3d& c = d.path.center;
+      const double farthest =
+          std::hypot(d.position.x() - c.x, d.position.y() - c.y, d.position.z() - c.z) + com.norm() + reach;
+      validateKinematicSpin(d.path, farthest, f + "path.", "the body's farthest point");
+    }
     m.names.push_back(d.name.empty() ? "body" + std::to_string(b) : d.name);
     m.motion.push_back(d.motion);
     m.mass.push_back(mass);

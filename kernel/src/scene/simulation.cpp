@@ -101,6 +101,13 @@ Simulation<S>::Simulation(std::shared_ptr<const Model<S>> model, State<S> initia
                          {static_cast<double>(state_.x(i, 0)), static_cast<double>(state_.x(i, 1)),
                           static_cast<double>(state_.x(i, 2))}});
     }
+    double reach = 0;  // of the set's farthest particle from the path's centre
+    for (const Index i : pins.particles)
+      reach = std::max(reach, std::hypot(static_cast<double>(state_.x(i, 0)) - path.center.x,
+                                         static_cast<double>(state_.x(i, 1)) - path.center.y,
+                                         static_cast<double>(state_.x(i, 2)) - path.center.z));
+    validateKinematicSpin(path, reach, "SimulationOptions.kinematicPins[" + std::to_string(set) + "].path.",
+                          "its farthest particle");
   }
   trackEnd_.resize(tracks_.size());
   trackVelocity_.setZero(static_cast<Index>(tracks_.size()), 3);

@@ -42,4 +42,15 @@ Vec3d kinematicRotate(const KinematicPath& path, const Vec3d& d, double t);
 /// turns, 0 <= startTime <= endTime.
 void validateKinematicPath(const KinematicPath& path, const std::string& where);
 
+/// The spin of a path moving points up to `reach` m from its center (at tau = 0): the path
+/// turns them at |angularVelocity| x reach, which must be at most kMaxSpeed, as their
+/// translation is (a pin 1e6 m from the centre turning at 1e3 rad/s would move at 1e9 m/s).
+/// Throws std::invalid_argument naming `where` + "angularVelocity", the limit, `what` the
+/// farthest point is ("its farthest particle") and the value.
+void validateKinematicSpin(const KinematicPath& path, double reach, const std::string& where, const std::string& what);
+/// The rule validateKinematicSpin applies, as messages say it ("at most ... rad/s in size (...)").
+std::string kinematicSpinRule(double reach, const std::string& what);
+/// Whether |angularVelocity| x reach <= kMaxSpeed.
+bool kinematicSpinWithinLimit(const KinematicPath& path, double reach);
+
 }  // namespace weft
