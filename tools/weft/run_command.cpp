@@ -890,7 +890,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     if (std::isfinite(stableDt))
       j["stable_dt_estimate"] = stableDt;
     else
-      j["stable_dt_estimate"] = nullptr;  // no limit (implicit Euler, or a model without springs)
+      j["stable_dt_estimate"] = nullptr;  // no limit (implicit Euler, projective, no springs or nothing free)
     j["status"] = interrupted ? "interrupted" : weft::stepCodeName(status.code);
     if (interrupted)
       j["status_message"] = std::string("stopped by ") + signalName(interrupted) + " after step " +
