@@ -85,8 +85,7 @@ ClothMeshStats addClothMesh(ModelBuilder<S>& builder, const TriangleMesh& mesh, 
       if (!std::isfinite(out[k])) reject(field + " scaled and translated", out[k], "finite (m)");
       if (!Limits::coordinate(out[k]))
         reject(field + (spec.scale == 1 && shift[k] == 0 ? "" : " scaled and translated"), out[k],
-               std::string("within +-") + number(Limits::kFarthest) + " m in " + Limits::kName +
-                   " precision (the squares of distances between particles must stay finite)");
+               Limits::coordinateRule());
     }
     p[i] = {out[0], out[1], out[2]};
   }

@@ -195,10 +195,7 @@ ModelAndState<S> ModelBuilder<S>::build() {
     return static_cast<S>(value);
   };
   const auto coordinate = [&](double value, const char* field, Index i) {
-    if (!Limits::coordinate(value))
-      reject("ModelBuilder::build", indexed(field, i), value,
-             std::string("within +-") + detail::number(Limits::kFarthest) + " m in " + precision +
-                 " precision (the squares of distances between particles must stay finite)");
+    if (!Limits::coordinate(value)) reject("ModelBuilder::build", indexed(field, i), value, Limits::coordinateRule());
     return static_cast<S>(value);
   };
 
@@ -219,13 +216,8 @@ ModelAndState<S> ModelBuilder<S>::build() {
     (void)scalar(stiffness_[s], "stiffness of spring", s);
     (void)scalar(damping_[s], "damping of spring", s);
     const Index a = springA_[s], b = springB_[s];
-    const double farthest = std::max(
-        {std::abs(px_[a]), std::abs(py_[a]), std::abs(pz_[a]), std::abs(px_[b]), std::abs(py_[b]), std::abs(pz_[b])});
-    if (!Limits::springResolved(rest_[s], farthest))
-      reject("ModelBuilder::build",
-             "the largest |coordinate| of the ends of spring [" + std::to_string(s) + "] (particles " +
-                 std::to_string(a) + " and " + std::to_string(b) + ")",
-             farthest, Limits::springRule(rest_[s]));
+    Limits::requireSpringResolved("ModelBuilder::build", s, a, b, rest_[s],
+                                  {px_[a], py_[a], pz_[a], px_[b], py_[b], pz_[b]});
   }
   const bool isGrid = grid_ && checkGridLayout(*grid_);
 

@@ -5,7 +5,9 @@
 // here too: Simulation<S> and the scene reader check it with the same function.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <string>
 
@@ -53,8 +55,26 @@ struct PrecisionLimits {
            " changes its length by more than a tenth; use double precision or build the model nearer the origin)";
   }
 
+  /// Throws std::invalid_argument ("<where>: the largest |coordinate| of the ends of spring
+  /// [s] (particles a and b) must be ...") unless springResolved; `ends` are the six
+  /// coordinates of its two ends (ModelBuilder::build and Simulation::setState).
+  static void requireSpringResolved(const std::string& where, long long s, long long a, long long b, double rest,
+                                    std::initializer_list<double> ends) {
+    double farthest = 0;
+    for (const double c : ends) farthest = std::max(farthest, std::abs(c));
+    if (!springResolved(rest, farthest))
+      rejectField(where + ": the largest |coordinate| of the ends of spring [" + std::to_string(s) + "] (particles " +
+                      std::to_string(a) + " and " + std::to_string(b) + ")",
+                  farthest, springRule(rest));
+  }
+
   static bool representable(double value) { return std::abs(value) <= kLargest; }
   static bool coordinate(double value) { return std::abs(value) <= kFarthest; }
+  /// What coordinate() requires, as messages say it.
+  static std::string coordinateRule() {
+    return "within +-" + number(kFarthest) + " m in " + kName +
+           " precision (the squares of distances between particles must stay finite)";
+  }
   /// A mass whose inverse (the integrators' 1/m) is finite in S.
   static bool invertibleMass(double mass) { return mass > 0 && 1.0 / mass <= kLargest; }
   /// The smallest positive normal number of S.

@@ -208,21 +208,14 @@ void Simulation<S>::setState(const State<S>& state) {
     for (int c = 0; c < 3; ++c)
       if (!Limits::coordinate(static_cast<double>(state.x(i, c))))
         detail::rejectField("Simulation::setState: state.x(" + std::to_string(i) + ", " + std::to_string(c) + ")",
-                            static_cast<double>(state.x(i, c)),
-                            std::string("within +-") + detail::number(Limits::kFarthest) + " m in " + Limits::kName +
-                                " precision (the squares of distances between particles must stay finite)");
+                            static_cast<double>(state.x(i, c)), Limits::coordinateRule());
   const Springs<S>& springs = model_->springs();
   for (Index k = 0; k < springs.count(); ++k) {
     const Index a = springs.a[k], b = springs.b[k];
-    double farthest = 0;
-    for (int c = 0; c < 3; ++c)
-      farthest = std::max(
-          {farthest, std::abs(static_cast<double>(state.x(a, c))), std::abs(static_cast<double>(state.x(b, c)))});
-    const double rest = static_cast<double>(springs.restLength[k]);
-    if (!Limits::springResolved(rest, farthest))
-      detail::rejectField("Simulation::setState: the largest |coordinate| of the ends of spring [" + std::to_string(k) +
-                              "] (particles " + std::to_string(a) + " and " + std::to_string(b) + ")",
-                          farthest, Limits::springRule(rest));
+    Limits::requireSpringResolved(
+        "Simulation::setState", k, a, b, static_cast<double>(springs.restLength[k]),
+        {static_cast<double>(state.x(a, 0)), static_cast<double>(state.x(a, 1)), static_cast<double>(state.x(a, 2)),
+         static_cast<double>(state.x(b, 0)), static_cast<double>(state.x(b, 1)), static_cast<double>(state.x(b, 2))});
   }
   // The clock drives kinematic pins, paths and wind: a clock that is not a finite number
   // would put NaN into the positions at the next step.
