@@ -371,6 +371,84 @@ TYPED_TEST(SimulationTest, SetStateRejectsNonFiniteAndMismatchedStates) {
   EXPECT_TRUE(sim.step().ok());
 }
 
+// Between a hundredth and a tenth of a spring's rest length of rounding, a run goes on but
+// warnings() says how much (the 8x8 flag's 1/7 m spacing: 1 % at 6.9 km from the origin in
+// float, 3.7e12 m in double).
+TYPED_TEST(SimulationTest, WarnsOfSpringsRoundingChangesByMoreThanAPercent) {
+  using S = TypeParam;
+  const bool single = sizeof(S) == sizeof(float);
+  Simulation<S> sim(makeFlag<S>(8), flagOptions(IntegratorKind::Rk4, ForceStrategy::Auto, 1, 1e-4));
+  EXPECT_TRUE(sim.warnings().empty());
+  const State<S> start = sim.state();
+  const auto movedBy = [&](double offset) {
+    State<S> moved = start;
+    for (Index i = 0; i < moved.x.rows(); ++i) moved.x(i, 0) += S(offset);
+    sim.setState(moved);
+    EXPECT_TRUE(sim.step().ok());
+    return sim.warnings();
+  };
+  EXPECT_TRUE(movedBy(single ? 6e3 : 3e12).empty());
+  const double far = single ? 2e4 : 1e13;
+  State<S> moved = start;
+  for (Index i = 0; i < moved.x.rows(); ++i) moved.x(i, 0) += S(far);
+  sim.setState(moved);
+  const std::vector<std::string> before = sim.warnings();
+  EXPECT_TRUE(sim.step().ok());
+  const std::vector<std::string> w = sim.warnings();
+  EXPECT_EQ(w, before);
+  ASSERT_EQ(w.size(), 1u);
+  // The worst spring: a structural one (the shortest) at the far end of the flag.
+  const double share = std::sqrt(3.0) * static_cast<double>(std::numeric_limits<S>::epsilon()) * 7 *
+                       static_cast<double>(sim.state().x.col(0).cwiseAbs().maxCoeff());
+  EXPECT_GT(share, 0.01);
+  EXPECT_LT(share, 0.1);
+  EXPECT_THAT(w[0], ::testing::StartsWith("spring "));
+  // (The run stayed where its start was: the start's line, as before the step, so that a
+  // caller comparing the lines before and after a run sees nothing new.)
+  EXPECT_THAT(w[0], ::testing::HasSubstr(std::string(" m from the origin at the start, where rounding to ") +
+                                         (single ? "float" : "double") + " can change its length by "));
+  EXPECT_THAT(w[0], ::testing::HasSubstr(" % of its rest length (more than 1 %): lengths, stretches and forces are "
+                                         "that much less accurate; use double precision or build the model nearer "
+                                         "the origin"));
+  const std::string by = "can change its length by ";
+  const size_t at = w[0].find(by);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_NEAR(std::stod(w[0].substr(at + by.size())), 100 * share, 1e-4 * 100 * share) << w[0];
+  // Back near the origin: nothing to say.
+  EXPECT_TRUE(movedBy(0).empty());
+
+  // A spring that starts short of a percent and is carried past it: said as it is now; one
+  // that starts past it and is carried a quarter further: both.
+  const auto carried = [&](double x0) {
+    ModelBuilder<S> b;
+    const double speed = single ? 1e5 : 1e8, dt = single ? 1e-3 : 250;
+    b.addParticle({x0, 0, 0}, 1, {speed, 0, 0});
+    b.addParticle({x0 + 0.1, 0, 0}, 1, {speed, 0, 0});
+    b.addSpring(0, 1, {1e-6, 0});
+    SimulationOptions options;
+    options.integrator = IntegratorKind::SymplecticEuler;
+    options.dt = dt;
+    options.gravity = {0, 0, 0};
+    options.threads = 1;
+    Simulation<S> flying(b.build(), options);
+    const std::vector<std::string> before = flying.warnings();
+    for (int k = 0; k < 40; ++k) EXPECT_TRUE(flying.step().ok());  // 4 km in float, 1e12 m in double
+    return std::pair(before, flying.warnings());
+  };
+  const auto [shortBefore, shortAfter] = carried(single ? 4e3 : 2.5e12);
+  EXPECT_TRUE(shortBefore.empty());
+  ASSERT_EQ(shortAfter.size(), 1u);
+  EXPECT_THAT(shortAfter[0], ::testing::StartsWith("spring 0 (particles 0 and 1, rest length 0.1"));
+  EXPECT_THAT(shortAfter[0], ::testing::HasSubstr(" m from the origin, where rounding to "));
+  EXPECT_THAT(shortAfter[0], ::testing::Not(::testing::HasSubstr("at the start")));
+  const auto [pastBefore, pastAfter] = carried(single ? 6e3 : 3e12);
+  ASSERT_EQ(pastBefore.size(), 1u);
+  EXPECT_THAT(pastBefore[0], ::testing::HasSubstr(" m from the origin at the start, where rounding to "));
+  ASSERT_EQ(pastAfter.size(), 1u);
+  EXPECT_THAT(pastAfter[0], ::testing::HasSubstr(" of its rest length; and spring 0 (particles 0 and 1"));
+  EXPECT_THAT(pastAfter[0], ::testing::HasSubstr(") is "));
+}
+
 TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {
   using S = TypeParam;
   for (const IntegratorKind kind : kAllIntegrators) {

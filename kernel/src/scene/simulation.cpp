@@ -233,7 +233,8 @@ void Simulation<S>::recordStart() {
     startX_ = state_.x;
     startTime_ = state_.time;
   }
-  startPenetration_ = -1;  // (both measured when asked for)
+  startRounding_ = worstRounding(state_.x);  // (one pass over the springs, as setState's checks)
+  startPenetration_ = -1;                    // (both measured when asked for)
   startIntersections_ = -1;
   nowIntersections_ = -1;
   startStep_ = stepCount_;
@@ -579,6 +580,54 @@ bool Simulation<S>::stateFinite() const {
   return std::isfinite(r.time);
 }
 
+// The spring whose length rounding to S changes the most at positions x, as a share of its
+// rest length (PrecisionLimits::roundingShare); the first such spring on a tie.
+template <class S>
+typename Simulation<S>::Rounding Simulation<S>::worstRounding(const Vec3Array<S>& x) const {
+  const Springs<S>& sp = model_->springs();
+  Rounding worst;
+  for (Index s = 0; s < sp.count(); ++s) {
+    const double rest = static_cast<double>(sp.restLength[s]);
+    if (!(rest > 0)) continue;
+    double farthest = 0;
+    for (const Index i : {sp.a[s], sp.b[s]})
+      for (int c = 0; c < 3; ++c) farthest = std::max(farthest, std::abs(static_cast<double>(x(i, c))));
+    const double share = detail::PrecisionLimits<S>::roundingShare(rest, farthest);
+    if (share > worst.share) worst = {share, farthest, s};
+  }
+  return worst;
+}
+
+// A line for warnings() when a spring's rounding share passes
+// PrecisionLimits::kRoundingWarning at the start or now. A start past it is said the same
+// way after any run that stays about where it started (so that a caller comparing the lines
+// before and after a run sees nothing new); a state now a quarter worse than that, or past
+// it when the start was not, is said too. (Past a tenth the model does not build and
+// setState() refuses the state; a run can still carry a cloth there.)
+template <class S>
+std::string Simulation<S>::roundingWarning() const {
+  using Limits = detail::PrecisionLimits<S>;
+  const Rounding now = stepCount_ == startStep_ ? startRounding_ : worstRounding(state_.x);
+  const bool fromStart = startRounding_.share > Limits::kRoundingWarning;
+  const bool worseNow = now.share > (fromStart ? 1.25 * startRounding_.share : Limits::kRoundingWarning);
+  if (!fromStart && !worseNow) return {};
+  const Springs<S>& sp = model_->springs();
+  std::ostringstream w;
+  const auto describe = [&](const Rounding& r, bool start) {
+    w << "spring " << r.spring << " (particles " << sp.a[r.spring] << " and " << sp.b[r.spring] << ", rest length "
+      << static_cast<double>(sp.restLength[r.spring]) << " m) " << (start ? "was " : "is ") << r.farthest
+      << " m from the origin" << (start ? " at the start" : "") << ", where rounding to " << Limits::kName
+      << " can change its length by " << 100 * r.share << " % of its rest length";
+  };
+  if (fromStart) describe(startRounding_, true);
+  if (fromStart && worseNow) w << "; and ";
+  if (worseNow) describe(now, false);
+  w << " (more than " << 100 * Limits::kRoundingWarning
+    << " %): lengths, stretches and forces are that much less accurate; use double precision or build the model "
+       "nearer the origin";
+  return w.str();
+}
+
 template <class S>
 std::vector<std::string> Simulation<S>::warnings() const {
   std::vector<std::string> out;
@@ -637,6 +686,7 @@ std::vector<std::string> Simulation<S>::warnings() const {
            "particles closer together than the body is wide";
     out.push_back(w.str());
   }
+  if (const std::string rounding = roundingWarning(); !rounding.empty()) out.push_back(rounding);
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
     const RigidStats& t = rigid_->totalStats();
     const auto body = [&](Index b) {

@@ -126,7 +126,10 @@ class Simulation {
   ///   change;
   /// - rigid bodies let into each other deeper than RigidStats::kDeepShare of the thinner
   ///   piece's inner radius (RigidStats::deepestShare), naming them, the depth, the step and
-  ///   what to change.
+  ///   what to change;
+  /// - a spring whose length rounding to the precision can change by more than 1 % of its
+  ///   rest length (it lies that far from the origin), now or at the start, naming the
+  ///   worst one (a model where that exceeds 10 % does not build).
   /// "The start" is the state the simulation was built with, or the last one given to
   /// setState() or load()/restore(). Empty when there is nothing to say. With self-collision
   /// on it runs the exact intersection check (a BVH built for the call).
@@ -273,6 +276,15 @@ class Simulation {
   mutable std::int64_t startIntersections_ = -1;
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
   void recordStart();
+  // The spring whose length rounding to S changes most (Simulation::warnings()).
+  struct Rounding {
+    double share = 0;     // of its rest length
+    double farthest = 0;  // m, the largest |coordinate| of its ends
+    Index spring = -1;
+  };
+  Rounding worstRounding(const Vec3Array<S>& x) const;
+  Rounding startRounding_;
+  std::string roundingWarning() const;
   // selfIntersectionCount() of the state now (-1: not counted since a step, a new start or
   // a restore, each of which forgets it).
   mutable std::int64_t nowIntersections_ = -1;
