@@ -206,9 +206,10 @@ class SelfCollider {
 /// some axis: v holds its four vertices (VT: the vertex, then the triangle's corners, split
 /// 1; EE: one edge, then the other, split 2) and box[i] is vertex i's box. The bounds are
 /// exact in S, the gap is taken in double. Expansion asks it of the skin boxes, each pass of
-/// the chunk's boxes.
+/// the chunk's boxes. (Forced inline: it runs once per primitive pair in both loops, and as
+/// a call GCC 12 made of it, a gathering chunk of the folded 128^2 cloth took 5-8 % longer.)
 template <class S>
-bool primitiveBoxesApart(const Aabb<S>* box, const Index* v, int split, double beyond) {
+[[gnu::always_inline]] inline bool primitiveBoxesApart(const Aabb<S>* box, const Index* v, int split, double beyond) {
   for (int a = 0; a < 3; ++a) {
     S lo1 = box[v[0]].lo[a], hi1 = box[v[0]].hi[a], lo2 = box[v[3]].lo[a], hi2 = box[v[3]].hi[a];
     for (int i = 1; i < 3; ++i) {
