@@ -449,6 +449,41 @@ TYPED_TEST(SimulationTest, WarnsOfSpringsRoundingChangesByMoreThanAPercent) {
   EXPECT_THAT(pastAfter[0], ::testing::HasSubstr(") is "));
 }
 
+// Adaptive rk45 on a stiff model says so: a chain of ten 1 g beads on springs of 1e6 N/m
+// (the stiffest mode near 6e4 rad/s, a stable substep near 5e-5 s) stepped by 10 ms takes
+// some 200 substeps a step; the same chain on springs of 10 N/m takes a few, and says nothing.
+TYPED_TEST(SimulationTest, Rk45OnAStiffModelSaysSo) {
+  using S = TypeParam;
+  const auto run = [](double stiffness, bool adaptive) {
+    ModelBuilder<S> b;
+    for (int i = 0; i < 10; ++i) b.addParticle({0.1 * i, 0, 0}, 1e-3);
+    for (int i = 0; i + 1 < 10; ++i) b.addSpring(i, i + 1, {stiffness, 0});
+    b.pin(0);
+    SimulationOptions options;
+    options.integrator = IntegratorKind::Rk45;
+    options.integration.adaptive = adaptive;
+    options.dt = adaptive ? 1e-2 : 1e-5;
+    options.threads = 1;
+    Simulation<S> sim(b.build(), options);
+    EXPECT_TRUE(sim.warnings().empty());  // (no step yet)
+    for (int k = 0; k < 5; ++k) EXPECT_TRUE(sim.step().ok()) << sim.status().message();
+    const double perStep = static_cast<double>(sim.totalWork().substeps) / 5;
+    return std::pair(perStep, sim.warnings());
+  };
+  const auto [stiffSubsteps, stiff] = run(1e6, true);
+  EXPECT_GE(stiffSubsteps, Simulation<S>::kStiffSubsteps);
+  ASSERT_EQ(stiff.size(), 1u);
+  EXPECT_THAT(stiff[0], ::testing::StartsWith("rk45 took "));
+  EXPECT_THAT(stiff[0], ::testing::HasSubstr(" substeps a step on average (a mean substep of "));
+  EXPECT_THAT(stiff[0], ::testing::HasSubstr("within 4x of its stability limit on the stiffest spring, "));
+  EXPECT_THAT(stiff[0], ::testing::HasSubstr("implicit Euler (integrator implicit) or projective dynamics"));
+  const auto [softSubsteps, soft] = run(10, true);
+  EXPECT_LT(softSubsteps, Simulation<S>::kStiffSubsteps);
+  EXPECT_TRUE(soft.empty()) << soft.front();
+  // Fixed steps (no error control) choose nothing: nothing to say.
+  EXPECT_TRUE(run(1e6, false).second.empty());
+}
+
 TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {
   using S = TypeParam;
   for (const IntegratorKind kind : kAllIntegrators) {

@@ -687,6 +687,22 @@ std::vector<std::string> Simulation<S>::warnings() const {
     out.push_back(w.str());
   }
   if (const std::string rounding = roundingWarning(); !rounding.empty()) out.push_back(rounding);
+  // Adaptive rk45 on a stiff model: its error control holds the substep near the stability
+  // limit of the stiffest spring, not where the accuracy asks, and the run takes that many
+  // substeps a step where an implicit method takes one solve.
+  if (options_.integrator == IntegratorKind::Rk45 && options_.integration.adaptive && stepCount_ > 0) {
+    const double perStep = static_cast<double>(totalWork_.substeps) / static_cast<double>(stepCount_);
+    const double stable = estimateStableTimeStep(*model_, IntegratorKind::Rk45);
+    const double mean = options_.dt / perStep;
+    if (perStep >= kStiffSubsteps && mean <= 4 * stable) {
+      std::ostringstream w;
+      w << "rk45 took " << perStep << " substeps a step on average (a mean substep of " << mean
+        << " s, within 4x of its stability limit on the stiffest spring, " << stable
+        << " s): the model is stiff for an explicit method, so the substeps keep it stable rather than accurate; "
+           "implicit Euler (integrator implicit) or projective dynamics (projective) take one solve a step";
+      out.push_back(w.str());
+    }
+  }
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
     const RigidStats& t = rigid_->totalStats();
     const auto body = [&](Index b) {

@@ -129,11 +129,16 @@ class Simulation {
   ///   what to change;
   /// - a spring whose length rounding to the precision can change by more than 1 % of its
   ///   rest length (it lies that far from the origin), now or at the start, naming the
-  ///   worst one (a model where that exceeds 10 % does not build).
+  ///   worst one (a model where that exceeds 10 % does not build);
+  /// - adaptive rk45 that took kStiffSubsteps or more substeps a step on average with its
+  ///   mean substep within 4x of its stability limit (estimateStableTimeStep): a model too
+  ///   stiff for an explicit method, with the methods that take one solve a step.
   /// "The start" is the state the simulation was built with, or the last one given to
   /// setState() or load()/restore(). Empty when there is nothing to say. With self-collision
   /// on it runs the exact intersection check (a BVH built for the call).
   std::vector<std::string> warnings() const;
+  /// The mean substeps a step of adaptive rk45 from which warnings() speaks of stiffness.
+  static constexpr double kStiffSubsteps = 100;
   /// Free particles that went through an obstacle between the start (as for warnings())
   /// and now: contactReport(&start).tunnelled, with the start kept by the simulation (its
   /// positions, only when there are obstacles). A particle that went through a solid
