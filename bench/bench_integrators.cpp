@@ -455,4 +455,27 @@ void BM_Textbook_Rk4_double(benchmark::State& st) {
 }
 BENCHMARK(BM_Textbook_Rk4_double)->Arg(128)->ArgName("size")->UseRealTime()->Unit(benchmark::kMicrosecond);
 
+// BM_Simulation_SetState: Simulation::setState on the flag (what a caller pays to reset a
+// run: every value checked, the start recorded), with its allocations (expected 0).
+template <class S>
+void BM_Simulation_SetState(benchmark::State& st) {
+  const auto size = static_cast<weft::Index>(st.range(0));
+  weft::SimulationOptions options;
+  options.threads = 1;
+  weft::Simulation<S> sim(weft::makeFlag<S>(size), options);
+  const weft::State<S> initial = sim.state();
+  sim.setState(initial);  // (warm: the same sizes from here on)
+  std::int64_t resets = 0;
+  const std::int64_t allocationsBefore = weftbench::allocationCount();
+  for (auto _ : st) {
+    sim.setState(initial);
+    ++resets;
+  }
+  st.counters["allocs_per_call"] =
+      resets ? static_cast<double>(weftbench::allocationCount() - allocationsBefore) / static_cast<double>(resets) : 0;
+  st.counters["springs"] = static_cast<double>(sim.model().springCount());
+}
+BENCHMARK(BM_Simulation_SetState<float>)->Arg(128)->ArgName("size")->UseRealTime()->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Simulation_SetState<double>)->Arg(128)->ArgName("size")->UseRealTime()->Unit(benchmark::kMicrosecond);
+
 }  // namespace

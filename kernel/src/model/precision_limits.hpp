@@ -10,6 +10,7 @@
 #include <initializer_list>
 #include <limits>
 #include <string>
+#include <string_view>
 
 #include "core/text.hpp"
 
@@ -70,13 +71,15 @@ struct PrecisionLimits {
   /// Throws std::invalid_argument ("<where>: the largest |coordinate| of the ends of spring
   /// [s] (particles a and b) must be ...") unless springResolved; `ends` are the six
   /// coordinates of its two ends (ModelBuilder::build and Simulation::setState).
-  static void requireSpringResolved(const std::string& where, long long s, long long a, long long b, double rest,
+  /// `where` is a view, not a string: callers check every spring, and a string made per call
+  /// would allocate once a spring (the message is made only when a spring fails).
+  static void requireSpringResolved(std::string_view where, long long s, long long a, long long b, double rest,
                                     std::initializer_list<double> ends) {
     double farthest = 0;
     for (const double c : ends) farthest = std::max(farthest, std::abs(c));
     if (!springResolved(rest, farthest))
-      rejectField(where + ": the largest |coordinate| of the ends of spring [" + std::to_string(s) + "] (particles " +
-                      std::to_string(a) + " and " + std::to_string(b) + ")",
+      rejectField(std::string(where) + ": the largest |coordinate| of the ends of spring [" + std::to_string(s) +
+                      "] (particles " + std::to_string(a) + " and " + std::to_string(b) + ")",
                   farthest, springRule(rest));
   }
 

@@ -280,13 +280,15 @@ class Simulation {
   mutable double startPenetration_ = -1;
   mutable std::int64_t startIntersections_ = -1;
   Index startStep_ = 0;  // stepCount_ at the start (only steps change the state since)
-  void recordStart();
   // The spring whose length rounding to S changes most (Simulation::warnings()).
   struct Rounding {
     double share = 0;     // of its rest length
     double farthest = 0;  // m, the largest |coordinate| of its ends
     Index spring = -1;
   };
+  // `rounding`: the start's worstRounding when the caller has it (setState finds it in the
+  // pass that checks the springs), else computed here.
+  void recordStart(const Rounding* rounding = nullptr);
   Rounding worstRounding(const Vec3Array<S>& x) const;
   Rounding startRounding_;
   std::string roundingWarning() const;
