@@ -156,7 +156,9 @@ class Simulation {
   /// like the steps this is for one thread at a time.
   std::int64_t startIntersectionCount() const;
   /// Replaces the state (same particle count, finite positions and time, speeds at most
-  /// kMaxSpeed; else std::invalid_argument naming the entry) and clears a failure.
+  /// kMaxSpeed, coordinates the precision holds to a tenth of every spring's length; else
+  /// std::invalid_argument naming the entry) and clears a failure. One pass over the
+  /// particles and one over the springs; allocates nothing (a reset in a loop is cheap).
   void setState(const State<S>& state);
   double timeStep() const { return options_.dt; }
   /// Changes the fixed step (> 0) and clears a failure.
