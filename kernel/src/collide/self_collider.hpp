@@ -77,6 +77,14 @@ class SelfCollider {
     Index vertex[4];
     bool vertexTriangle;
   };
+  /// What the expansion reads of a triangle, on one cache line: its corners, the vertices
+  /// it owns and the ends of the edges it owns (SurfaceTopology), in the topology's order.
+  struct alignas(64) Owned {
+    Index corner[3];
+    Index vertex[3];
+    Index edge[3][2];
+    std::uint8_t vertices = 0, edges = 0;
+  };
   /// One block of kGrain candidate pairs: their primitive pairs (listed at the gathering,
   /// those whose skin boxes come within the thickness), and what the last pass found.
   struct Block {
@@ -184,6 +192,7 @@ class SelfCollider {
   }
   std::vector<double> thickness_;          // (n) m, each particle's cloth's thickness
   std::vector<double> triangleThickness_;  // (triangles) m, the largest of its corners' thickness
+  std::vector<Owned> owned_;               // (triangles) for the expansion
   double thinnest_ = 0;                    // m, the least thickness of a particle
   double skin_ = 0;                        // m
   std::vector<Aabb<S>> skinBox_;           // (n) each vertex's skin box

@@ -356,7 +356,22 @@ SelfCollider<S>::SelfCollider(const Model<S>& model, const SelfCollisionOptions&
     skin_ = std::min(skin_, kConeSkin * std::sqrt(shortest2));  // > 0: the thickness is below every altitude
   }
   if (triangles > 0) {
-    (void)model.surfaceTopology();  // derived once per Model
+    const SurfaceTopology& topo = model.surfaceTopology();  // derived once per Model
+    owned_.resize(static_cast<size_t>(triangles));
+    for (Index t = 0; t < triangles; ++t) {
+      Owned& o = owned_[static_cast<size_t>(t)];
+      o.corner[0] = corners.a[t];
+      o.corner[1] = corners.b[t];
+      o.corner[2] = corners.c[t];
+      for (Index k = topo.ownedVertices.begin(t); k < topo.ownedVertices.end(t); ++k)
+        o.vertex[o.vertices++] = topo.ownedVertices.entries[k];
+      for (Index k = topo.ownedEdges.begin(t); k < topo.ownedEdges.end(t); ++k) {
+        const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[k])];
+        o.edge[o.edges][0] = e[0];
+        o.edge[o.edges][1] = e[1];
+        ++o.edges;
+      }
+    }
     // With flat regions culled, a grid's tree is built over its rows and columns, not over
     // the positions it starts in: its nodes are then patches of the cloth even when it
     // starts folded (a tree over folded layers pairs the layers' triangles first, and no

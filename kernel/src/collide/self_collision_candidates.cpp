@@ -123,8 +123,7 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
   Block& block = blocks_[static_cast<size_t>(blockIndex)];
   block.primitives.clear();
   block.pairEnd.clear();
-  const Triangles& tr = model_->triangles();
-  const SurfaceTopology& topo = model_->surfaceTopology();
+  const Owned* owned = owned_.data();
   const double* th = thickness_.data();
   // A primitive pair whose skin boxes are farther apart than its thickness cannot come
   // that close while every vertex stays in its skin box.
@@ -136,14 +135,14 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
   const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
   for (Index pi = begin; pi < end; ++pi) {
     const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
-    const Index ta[3] = {tr.a[pair.first], tr.b[pair.first], tr.c[pair.first]};
-    const Index tb[3] = {tr.a[pair.second], tr.b[pair.second], tr.c[pair.second]};
+    const Owned& first = owned[pair.first];
+    const Owned& second = owned[pair.second];
     // Vertices owned by one triangle against the other.
     for (int side = 0; side < 2; ++side) {
-      const Index owner = side == 0 ? pair.first : pair.second;
-      const Index* other = side == 0 ? tb : ta;
-      for (Index k = topo.ownedVertices.begin(owner); k < topo.ownedVertices.end(owner); ++k) {
-        const Index v = topo.ownedVertices.entries[k];
+      const Owned& owner = side == 0 ? first : second;
+      const Index* other = side == 0 ? second.corner : first.corner;
+      for (int k = 0; k < owner.vertices; ++k) {
+        const Index v = owner.vertex[k];
         if (v == other[0] || v == other[1] || v == other[2]) continue;
         const Index vt[4] = {v, other[0], other[1], other[2]};
         if (apart(vt, 1)) continue;
@@ -151,10 +150,10 @@ void SelfCollider<S>::expandBlock(Index blockIndex) {
       }
     }
     // Edges owned by one against edges owned by the other.
-    for (Index ka = topo.ownedEdges.begin(pair.first); ka < topo.ownedEdges.end(pair.first); ++ka) {
-      const Edge& e = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[ka])];
-      for (Index kb = topo.ownedEdges.begin(pair.second); kb < topo.ownedEdges.end(pair.second); ++kb) {
-        const Edge& f = topo.edges[static_cast<size_t>(topo.ownedEdges.entries[kb])];
+    for (int ka = 0; ka < first.edges; ++ka) {
+      const Index(&e)[2] = first.edge[ka];
+      for (int kb = 0; kb < second.edges; ++kb) {
+        const Index(&f)[2] = second.edge[kb];
         if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
         const Index ee[4] = {e[0], e[1], f[0], f[1]};
         if (apart(ee, 2)) continue;
