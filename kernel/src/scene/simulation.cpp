@@ -21,6 +21,16 @@ namespace weft {
 
 namespace {
 
+/// The largest |coordinate| of particles a and b (x's columns X), in double: what the
+/// precision's rounding rules measure a spring by (setState's check, worstRounding).
+template <class S>
+double farthestEnd(const S* const (&X)[3], Index a, Index b) {
+  double farthest = 0;
+  for (int c = 0; c < 3; ++c)
+    farthest = std::max({farthest, std::abs(static_cast<double>(X[c][a])), std::abs(static_cast<double>(X[c][b]))});
+  return farthest;
+}
+
 const SimulationOptions& validated(const SimulationOptions& o) {
   if (!(std::isfinite(o.dt) && o.dt > 0)) detail::rejectField("SimulationOptions.dt", o.dt, "finite and > 0 (s)");
   if (!o.arena && o.threads < 0)
@@ -218,17 +228,13 @@ void Simulation<S>::setState(const State<S>& state) {
   for (Index k = 0; k < springs.count(); ++k) {
     const Index a = springs.a[k], b = springs.b[k];
     const double rest = static_cast<double>(springs.restLength[k]);
-    double farthest = 0;
-    for (int c = 0; c < 3; ++c)
-      farthest = std::max({farthest, std::abs(static_cast<double>(X[c][a])), std::abs(static_cast<double>(X[c][b]))});
+    const double farthest = farthestEnd(X, a, b);
     if (!Limits::springResolved(rest, farthest))
       Limits::requireSpringResolved(
           "Simulation::setState", k, a, b, rest,
           {static_cast<double>(state.x(a, 0)), static_cast<double>(state.x(a, 1)), static_cast<double>(state.x(a, 2)),
            static_cast<double>(state.x(b, 0)), static_cast<double>(state.x(b, 1)), static_cast<double>(state.x(b, 2))});
-    if (!(rest > 0)) continue;
-    const double share = Limits::roundingShare(rest, farthest);
-    if (share > rounding.share) rounding = {share, farthest, k};
+    rounding.consider(Limits::roundingShare(rest, farthest), farthest, k);
   }
   // The clock drives kinematic pins, paths and wind: a clock that is not a finite number
   // would put NaN into the positions at the next step.
@@ -604,12 +610,8 @@ typename Simulation<S>::Rounding Simulation<S>::worstRounding(const Vec3Array<S>
   for (Index s = 0; s < sp.count(); ++s) {
     const double rest = static_cast<double>(sp.restLength[s]);
     if (!(rest > 0)) continue;
-    const Index a = sp.a[s], b = sp.b[s];
-    double farthest = 0;
-    for (int c = 0; c < 3; ++c)
-      farthest = std::max({farthest, std::abs(static_cast<double>(X[c][a])), std::abs(static_cast<double>(X[c][b]))});
-    const double share = detail::PrecisionLimits<S>::roundingShare(rest, farthest);
-    if (share > worst.share) worst = {share, farthest, s};
+    const double farthest = farthestEnd(X, sp.a[s], sp.b[s]);
+    worst.consider(detail::PrecisionLimits<S>::roundingShare(rest, farthest), farthest, s);
   }
   return worst;
 }

@@ -287,6 +287,11 @@ class Simulation {
     double share = 0;     // of its rest length
     double farthest = 0;  // m, the largest |coordinate| of its ends
     Index spring = -1;
+    // Keeps spring s if its share is larger (the first on a tie; a spring of rest length 0
+    // has share 0 and is never kept).
+    void consider(double s_share, double s_farthest, Index s) {
+      if (s_share > share) *this = {s_share, s_farthest, s};
+    }
   };
   // `rounding`: the start's worstRounding when the caller has it (setState finds it in the
   // pass that checks the springs), else computed here.
