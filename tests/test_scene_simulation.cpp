@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -465,7 +466,8 @@ TYPED_TEST(SimulationTest, Rk45OnAStiffModelSaysSo) {
     options.dt = adaptive ? 1e-2 : 1e-5;
     options.threads = 1;
     Simulation<S> sim(b.build(), options);
-    EXPECT_TRUE(sim.warnings().empty());  // (no step yet)
+    // (Before the first step only the forecast can be said: the test below.)
+    for (const std::string& w : sim.warnings()) EXPECT_THAT(w, ::testing::StartsWith("rk45 will take at least "));
     for (int k = 0; k < 5; ++k) EXPECT_TRUE(sim.step().ok()) << sim.status().message();
     const double perStep = static_cast<double>(sim.totalWork().substeps) / 5;
     return std::pair(perStep, sim.warnings());
@@ -482,6 +484,43 @@ TYPED_TEST(SimulationTest, Rk45OnAStiffModelSaysSo) {
   EXPECT_TRUE(soft.empty()) << soft.front();
   // Fixed steps (no error control) choose nothing: nothing to say.
   EXPECT_TRUE(run(1e6, false).second.empty());
+}
+
+TYPED_TEST(SimulationTest, Rk45OnAVeryStiffModelSaysSoBeforeTheFirstStep) {
+  using S = TypeParam;
+  const auto simulation = [](double stiffness, bool adaptive) {
+    ModelBuilder<S> b;
+    for (int i = 0; i < 10; ++i) b.addParticle({0.1 * i, 0, 0}, 1e-3);
+    for (int i = 0; i + 1 < 10; ++i) b.addSpring(i, i + 1, {stiffness, 0});
+    b.pin(0);
+    SimulationOptions options;
+    options.integrator = IntegratorKind::Rk45;
+    options.integration.adaptive = adaptive;
+    options.dt = 1e-2;
+    options.threads = 1;
+    return Simulation<S>(b.build(), options);
+  };
+  // At 1e7 N/m a step needs at least dt / (4 x the stability limit) substeps: said before
+  // the first step, with that count, which the step then takes (about 3.3x as many here).
+  Simulation<S> sim = simulation(1e7, true);
+  const double limit = estimateStableTimeStep(sim.model(), IntegratorKind::Rk45);
+  const double least = std::floor(1e-2 / (4 * limit));
+  ASSERT_GE(least, Simulation<S>::kStiffSubsteps);
+  const std::vector<std::string> before = sim.warnings();
+  ASSERT_EQ(before.size(), 1u);
+  std::ostringstream count;
+  count << "rk45 will take at least " << least << " substeps a step (dt 0.01 s against a stability limit";
+  EXPECT_THAT(before[0], ::testing::StartsWith(count.str()));
+  EXPECT_THAT(before[0], ::testing::HasSubstr("implicit Euler (integrator implicit) or projective dynamics"));
+  ASSERT_TRUE(sim.step().ok()) << sim.status().message();
+  EXPECT_GE(static_cast<double>(sim.totalWork().substeps), least);
+  // After a step the line says what the steps took instead.
+  const std::vector<std::string> after = sim.warnings();
+  ASSERT_EQ(after.size(), 1u);
+  EXPECT_THAT(after[0], ::testing::StartsWith("rk45 took "));
+  // A model the bound does not call stiff, or fixed steps: nothing before the first step.
+  EXPECT_TRUE(simulation(1e5, true).warnings().empty());
+  EXPECT_TRUE(simulation(1e7, false).warnings().empty());
 }
 
 TYPED_TEST(SimulationTest, RunCountsStepsTimeAndWork) {

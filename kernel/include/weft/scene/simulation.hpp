@@ -132,7 +132,9 @@ class Simulation {
   ///   worst one (a model where that exceeds 10 % does not build);
   /// - adaptive rk45 that took kStiffSubsteps or more substeps a step on average with its
   ///   mean substep within 4x of its stability limit (estimateStableTimeStep): a model too
-  ///   stiff for an explicit method, with the methods that take one solve a step.
+  ///   stiff for an explicit method, with the methods that take one solve a step; before the
+  ///   first step, the same when dt / (4 x that limit), the least a step can take, is
+  ///   kStiffSubsteps or more (so a run that will crawl says why before it starts).
   /// "The start" is the state the simulation was built with, or the last one given to
   /// setState() or load()/restore(). Empty when there is nothing to say. With self-collision
   /// on it runs the exact intersection check (a BVH built for the call).
