@@ -170,7 +170,7 @@ class BvhPairScratch {
   std::vector<std::array<Index, 2>> front_, next_;  // tasks (pairs of node references)
   std::vector<TaskPairs> taskPairs_;
   std::vector<ThreadLevels> threadLevels_;      // one per thread slot of the executor
-  std::vector<std::uint64_t> keys_, keysSwap_;  // the radix sort of the result
+  std::vector<std::uint64_t> keys_, keysSwap_;  // the sort of the result (sortPairs)
   std::vector<Index> histogram_;
 };
 

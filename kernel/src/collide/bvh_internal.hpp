@@ -127,8 +127,11 @@ inline bool overlap(const Aabb<double>& a, const Aabb<double>& b) {
 }
 #endif
 
-/// Sorts pairs by (first, second): an LSD radix sort on the significant bits of the two
-/// indices, 11 bits per pass (comparison sorts mispredict a branch per comparison).
+/// Sorts pairs by (first, second). With at least a pair per four values of `first` (a
+/// self-collision list: a few pairs a triangle), a counting sort on `first` (one scatter)
+/// and an insertion sort of each run of equal firsts by `second` (a few pairs each);
+/// otherwise an LSD radix sort on the significant bits of the two indices, 11 bits per pass
+/// (comparison sorts mispredict a branch per comparison). The same order either way.
 inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_t>& keys,
                       std::vector<std::uint64_t>& swap, std::vector<Index>& histogram) {
   const size_t n = pairs.size();
@@ -140,6 +143,37 @@ inline void sortPairs(std::vector<TrianglePair>& pairs, std::vector<std::uint64_
   for (const TrianglePair& p : pairs) {
     maxFirst = std::max(maxFirst, static_cast<std::uint32_t>(p.first));
     maxSecond = std::max(maxSecond, static_cast<std::uint32_t>(p.second));
+  }
+  if (static_cast<size_t>(maxFirst) < 4 * n) {
+    // histogram[f] = where the run of first f starts, then (as the scatter fills it) ends.
+    const size_t buckets = static_cast<size_t>(maxFirst) + 1;
+    histogram.assign(buckets + 1, 0);
+    for (const TrianglePair& p : pairs) ++histogram[static_cast<size_t>(p.first) + 1];
+    for (size_t b = 1; b <= buckets; ++b) histogram[b] += histogram[b - 1];
+    swap.resize(n);
+    std::uint64_t* out = swap.data();
+    for (const TrianglePair& p : pairs)
+      out[static_cast<size_t>(histogram[static_cast<size_t>(p.first)]++)] =
+          std::uint64_t(static_cast<std::uint32_t>(p.first)) << 32 | static_cast<std::uint32_t>(p.second);
+    // Each run by second (the key's low half; the high half is equal).
+    size_t begin = 0;
+    for (size_t f = 0; f < buckets; ++f) {
+      const size_t end = static_cast<size_t>(histogram[f]);
+      if (end - begin > 32) {
+        std::sort(out + begin, out + end);
+      } else {
+        for (size_t i = begin + 1; i < end; ++i) {
+          const std::uint64_t key = out[i];
+          size_t j = i;
+          for (; j > begin && out[j - 1] > key; --j) out[j] = out[j - 1];
+          out[j] = key;
+        }
+      }
+      begin = end;
+    }
+    for (size_t i = 0; i < n; ++i)
+      pairs[i] = {static_cast<Index>(out[i] >> 32), static_cast<Index>(out[i] & 0xFFFFFFFFu)};
+    return;
   }
   const int secondBits = std::bit_width(maxSecond);
   const int bits = std::bit_width(maxFirst) + secondBits;
