@@ -137,6 +137,8 @@ class SelfCollider {
                  SelfCollisionStats& stats);
 
   static constexpr Index kVertexGrain = 4096;
+  /// Slots a block of the leaf cones' pass computes at a time (findFlatRegions).
+  static constexpr Index kConeBlock = 128;
   /// Sweeps of the response over a pass's contacts for the pushes and normal impulses
   /// (sequential impulses, each contact's accumulated push and impulse >= 0); friction
   /// follows in one more sweep.
