@@ -563,13 +563,16 @@ bool SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
   });
   const Triangles& tr = model_->triangles();
   exec.parallelFor(model_->triangleCount(), kVertexGrain, [&](Index begin, Index end) {
-    for (int a = 0; a < 3; ++a)
-      for (Index t = begin; t < end; ++t) {
-        const Index i = tr.a[t], j = tr.b[t], k = tr.c[t];
-        const Aabb<S>* box = sweptBox_.data();
-        triangleBox_[static_cast<size_t>(t)].lo[a] = std::min({box[i].lo[a], box[j].lo[a], box[k].lo[a]});
-        triangleBox_[static_cast<size_t>(t)].hi[a] = std::max({box[i].hi[a], box[j].hi[a], box[k].hi[a]});
+    const Aabb<S>* box = sweptBox_.data();
+    // (Triangle by triangle: its three corners' boxes are loaded once for the three axes.)
+    for (Index t = begin; t < end; ++t) {
+      const Aabb<S>&bi = box[tr.a[t]], &bj = box[tr.b[t]], &bk = box[tr.c[t]];
+      Aabb<S>& out = triangleBox_[static_cast<size_t>(t)];
+      for (int a = 0; a < 3; ++a) {
+        out.lo[a] = std::min(std::min(bi.lo[a], bj.lo[a]), bk.lo[a]);
+        out.hi[a] = std::max(std::max(bi.hi[a], bj.hi[a]), bk.hi[a]);
       }
+    }
   });
   const bool all = !onlyMoved_;
   exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
