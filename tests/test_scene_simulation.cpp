@@ -450,22 +450,29 @@ TYPED_TEST(SimulationTest, WarnsOfSpringsRoundingChangesByMoreThanAPercent) {
   EXPECT_THAT(pastAfter[0], ::testing::HasSubstr(") is "));
 }
 
-// Adaptive rk45 on a stiff model says so: a chain of ten 1 g beads on springs of 1e6 N/m
-// (the stiffest mode near 6e4 rad/s, a stable substep near 5e-5 s) stepped by 10 ms takes
-// some 200 substeps a step; the same chain on springs of 10 N/m takes a few, and says nothing.
+// A chain of ten 1 g beads 10 cm apart on springs of `stiffness` N/m, the first pinned,
+// stepped by rk45 (adaptive or not) at dt, on one thread.
+template <class S>
+Simulation<S> rk45BeadChain(double stiffness, bool adaptive, double dt) {
+  ModelBuilder<S> b;
+  for (int i = 0; i < 10; ++i) b.addParticle({0.1 * i, 0, 0}, 1e-3);
+  for (int i = 0; i + 1 < 10; ++i) b.addSpring(i, i + 1, {stiffness, 0});
+  b.pin(0);
+  SimulationOptions options;
+  options.integrator = IntegratorKind::Rk45;
+  options.integration.adaptive = adaptive;
+  options.dt = dt;
+  options.threads = 1;
+  return Simulation<S>(b.build(), options);
+}
+
+// Adaptive rk45 on a stiff model says so: the chain on springs of 1e6 N/m (the stiffest
+// mode near 6e4 rad/s, a stable substep near 5e-5 s) stepped by 10 ms takes some 200
+// substeps a step; the same chain on springs of 10 N/m takes a few, and says nothing.
 TYPED_TEST(SimulationTest, Rk45OnAStiffModelSaysSo) {
   using S = TypeParam;
   const auto run = [](double stiffness, bool adaptive) {
-    ModelBuilder<S> b;
-    for (int i = 0; i < 10; ++i) b.addParticle({0.1 * i, 0, 0}, 1e-3);
-    for (int i = 0; i + 1 < 10; ++i) b.addSpring(i, i + 1, {stiffness, 0});
-    b.pin(0);
-    SimulationOptions options;
-    options.integrator = IntegratorKind::Rk45;
-    options.integration.adaptive = adaptive;
-    options.dt = adaptive ? 1e-2 : 1e-5;
-    options.threads = 1;
-    Simulation<S> sim(b.build(), options);
+    Simulation<S> sim = rk45BeadChain<S>(stiffness, adaptive, adaptive ? 1e-2 : 1e-5);
     // (Before the first step only the forecast can be said: the test below.)
     for (const std::string& w : sim.warnings()) EXPECT_THAT(w, ::testing::StartsWith("rk45 will take at least "));
     for (int k = 0; k < 5; ++k) EXPECT_TRUE(sim.step().ok()) << sim.status().message();
@@ -488,18 +495,7 @@ TYPED_TEST(SimulationTest, Rk45OnAStiffModelSaysSo) {
 
 TYPED_TEST(SimulationTest, Rk45OnAVeryStiffModelSaysSoBeforeTheFirstStep) {
   using S = TypeParam;
-  const auto simulation = [](double stiffness, bool adaptive) {
-    ModelBuilder<S> b;
-    for (int i = 0; i < 10; ++i) b.addParticle({0.1 * i, 0, 0}, 1e-3);
-    for (int i = 0; i + 1 < 10; ++i) b.addSpring(i, i + 1, {stiffness, 0});
-    b.pin(0);
-    SimulationOptions options;
-    options.integrator = IntegratorKind::Rk45;
-    options.integration.adaptive = adaptive;
-    options.dt = 1e-2;
-    options.threads = 1;
-    return Simulation<S>(b.build(), options);
-  };
+  const auto simulation = [](double stiffness, bool adaptive) { return rk45BeadChain<S>(stiffness, adaptive, 1e-2); };
   // At 1e7 N/m a step needs at least dt / (4 x the stability limit) substeps: said before
   // the first step, with that count, which the step then takes (about 3.3x as many here).
   Simulation<S> sim = simulation(1e7, true);
