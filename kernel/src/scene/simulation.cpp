@@ -707,35 +707,32 @@ std::vector<std::string> Simulation<S>::warnings() const {
   if (const std::string rounding = roundingWarning(); !rounding.empty()) out.push_back(rounding);
   // Adaptive rk45 on a stiff model: its error control holds the substep near the stability
   // limit of the stiffest spring, not where the accuracy asks, and the run takes that many
-  // substeps a step where an implicit method takes one solve.
-  // Before the first step it is foreseen from the same limit: a step needs at least dt / (4
-  // x the limit) substeps (the bound on the stiffest mode is within 4x of it), said before a
-  // run that would otherwise crawl without a word.
-  if (options_.integrator == IntegratorKind::Rk45 && options_.integration.adaptive && stepCount_ == 0) {
+  // substeps a step where an implicit method takes one solve. Before the first step it is
+  // foreseen from the same limit: a step needs at least dt / (4 x the limit) substeps (the
+  // bound on the stiffest mode is within 4x of it), said before a run that would otherwise
+  // crawl without a word.
+  if (options_.integrator == IntegratorKind::Rk45 && options_.integration.adaptive) {
     const double stable = estimateStableTimeStep(*model_, IntegratorKind::Rk45);
-    const double least = options_.dt / (4 * stable);
-    if (least >= kStiffSubsteps) {
-      std::ostringstream w;
-      w << "rk45 will take at least " << std::floor(least) << " substeps a step (dt " << options_.dt
-        << " s against a stability limit on the stiffest spring of " << stable
-        << " s, within 4x): the model is stiff for an explicit method, so the substeps will keep it stable rather "
-           "than accurate and the run will be slow; implicit Euler (integrator implicit) or projective dynamics "
-           "(projective) take one solve a step";
-      out.push_back(w.str());
+    const char* instead =
+        "implicit Euler (integrator implicit) or projective dynamics (projective) take one solve a step";
+    std::ostringstream w;
+    if (stepCount_ == 0) {
+      if (const double least = options_.dt / (4 * stable); least >= kStiffSubsteps)
+        w << "rk45 will take at least " << std::floor(least) << " substeps a step (dt " << options_.dt
+          << " s against a stability limit on the stiffest spring of " << stable
+          << " s, within 4x): the model is stiff for an explicit method, so the substeps will keep it stable rather "
+             "than accurate and the run will be slow; "
+          << instead;
+    } else {
+      const double perStep = static_cast<double>(totalWork_.substeps) / static_cast<double>(stepCount_);
+      const double mean = options_.dt / perStep;
+      if (perStep >= kStiffSubsteps && mean <= 4 * stable)
+        w << "rk45 took " << perStep << " substeps a step on average (a mean substep of " << mean
+          << " s, within 4x of its stability limit on the stiffest spring, " << stable
+          << " s): the model is stiff for an explicit method, so the substeps keep it stable rather than accurate; "
+          << instead;
     }
-  }
-  if (options_.integrator == IntegratorKind::Rk45 && options_.integration.adaptive && stepCount_ > 0) {
-    const double perStep = static_cast<double>(totalWork_.substeps) / static_cast<double>(stepCount_);
-    const double stable = estimateStableTimeStep(*model_, IntegratorKind::Rk45);
-    const double mean = options_.dt / perStep;
-    if (perStep >= kStiffSubsteps && mean <= 4 * stable) {
-      std::ostringstream w;
-      w << "rk45 took " << perStep << " substeps a step on average (a mean substep of " << mean
-        << " s, within 4x of its stability limit on the stiffest spring, " << stable
-        << " s): the model is stiff for an explicit method, so the substeps keep it stable rather than accurate; "
-           "implicit Euler (integrator implicit) or projective dynamics (projective) take one solve a step";
-      out.push_back(w.str());
-    }
+    if (!w.str().empty()) out.push_back(w.str());
   }
   if (rigid_ && rigid_->totalStats().deepestShare > RigidStats::kDeepShare) {
     const RigidStats& t = rigid_->totalStats();
