@@ -97,10 +97,11 @@ constexpr double kBytesPerSelfCollisionTriangle = 1064;
 // Resident memory a rigid body's share of the world takes once a pile of them has landed
 // (pairs, caches, manifolds, constraints: their buffers are reserved for 16 pairs a piece
 // and become resident as the contacts fill them), measured on the `pile` (1005 bodies):
-// 6.5 MB after its first step, while the bodies fall apart from each other, and 11.7 MB more
-// once they have landed (3,000 touching pairs, 5,100 contacts, from about its 60th step).
+// 6.5 MB after its first step, while the bodies fall apart from each other, and 8.7 MB more
+// once they have landed (3,000 touching pairs, 5,100 contacts, from about its 60th step; the
+// solver's 576-byte constraints kept once, the warm start's 64-byte points beside them).
 // A scene whose bodies never touch is estimated high; one that piles up is not estimated low.
-constexpr double kBytesPerRigidBody = 18700;
+constexpr double kBytesPerRigidBody = 15600;
 
 /// Whether assimp reads the mesh file `name` (weft reads PLY, STL and OBJ itself; a name
 /// without one of their extensions is counted as assimp's, the larger estimate).

@@ -135,7 +135,7 @@ void RigidWorld::buildConstraints(double h) {
       Index match = -1;
       double nearest = kWarmStartDistance * kWarmStartDistance;
       for (Index l = lastBegin; l < lastEnd; ++l) {
-        const Constraint& old = lastConstraints_[l];
+        const WarmPoint& old = lastPoints_[l];
         if (old.featureId == c.featureId) {
           match = l;
           break;
@@ -149,9 +149,9 @@ void RigidWorld::buildConstraints(double h) {
       if (match >= 0) {
         // Impulses per substep: rescaled when the substep changed.
         const double scale = lastSubstep_ > 0 ? h / lastSubstep_ : 1.0;
-        const Constraint& old = lastConstraints_[match];
+        const WarmPoint& old = lastPoints_[match];
         c.normalImpulse = scale * old.normalImpulse;
-        const Vec3 friction = scale * (old.tangentImpulse1 * old.tangent1 + old.tangentImpulse2 * old.tangent2);
+        const Vec3 friction = scale * old.frictionImpulse;
         c.tangentImpulse1 = friction.dot(c.tangent1);
         c.tangentImpulse2 = friction.dot(c.tangent2);
         ++last_.warmStarted;

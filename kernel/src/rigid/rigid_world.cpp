@@ -98,8 +98,9 @@ RigidWorld::RigidWorld(std::shared_ptr<const RigidModel> model, RigidState initi
   try {
     reservePairs(cap);
   } catch (const std::bad_alloc&) {
-    const double bytes = static_cast<double>(cap) * (2 * sizeof(Pair) + 2 * sizeof(PairCache) +
-                                                     sizeof(ContactManifold) + 8 * sizeof(Constraint) + sizeof(Block));
+    const double bytes =
+        static_cast<double>(cap) * (2 * sizeof(Pair) + 2 * sizeof(PairCache) + sizeof(ContactManifold) +
+                                    4 * (sizeof(Constraint) + sizeof(WarmPoint)) + sizeof(Block));
     throw std::invalid_argument("RigidWorld: rigid.maxPairs = " + std::to_string(options_.maxPairs) + " (" +
                                 std::to_string(cap) + " pairs) needs about " +
                                 detail::number(std::round(10 * bytes / (1 << 30)) / 10) +
@@ -120,7 +121,7 @@ void RigidWorld::reservePairs(std::size_t cap) {
   margins_.reserve(cap);
   outcomes_.reserve(cap);
   constraints_.reserve(4 * cap);
-  lastConstraints_.reserve(4 * cap);
+  lastPoints_.reserve(4 * cap);
   pairFirstConstraint_.reserve(cap + 1);
   blocks_.reserve(cap);
   colourOrder_.reserve(cap);
@@ -171,7 +172,7 @@ void RigidWorld::setState(const RigidState& s) {
   // A new state: nothing of the last contacts carries over.
   lastPairs_.clear();
   lastCaches_.clear();
-  lastConstraints_.clear();
+  lastPoints_.clear();
   lastPairFirstConstraint_.assign(1, 0);
   lastSupports_.clear();
   supportInput_.clear();
@@ -188,7 +189,7 @@ void RigidWorld::transfer(Archive& a, Self& self) {
   a.field(self.kinematicQ0_, "kinematic orientations");
   a.field(self.lastPairs_, "rigid pairs");
   a.field(self.lastCaches_, "rigid witness caches");
-  a.field(self.lastConstraints_, "rigid contact constraints");
+  a.field(self.lastPoints_, "rigid contact points");
   a.field(self.lastPairFirstConstraint_, "rigid pair constraints");
   a.field(self.lastSupports_, "rigid support contacts");
   a.field(self.lastSubstep_, "the last substep");
@@ -229,7 +230,7 @@ void RigidWorld::loadCarry(ArchiveReader& in) {
   for (const PairCache& c : lastCaches_) in.checkFlag(c, offsetof(PairCache, touching), "a witness cache");
   const std::vector<Index>& first = lastPairFirstConstraint_;
   bool csr = first.size() == lastPairs_.size() + 1 && first.front() == 0 &&
-             first.back() == static_cast<Index>(lastConstraints_.size());
+             first.back() == static_cast<Index>(lastPoints_.size());
   for (std::size_t k = 1; csr && k < first.size(); ++k) csr = first[k - 1] <= first[k];
   if (!csr) in.fail("the rigid pairs' constraint ranges do not cover the constraints in order");
   if (!(std::isfinite(lastSubstep_) && lastSubstep_ >= 0)) in.fail("the last substep is not >= 0");
@@ -500,7 +501,10 @@ StepStatus RigidWorld::stepChunk(double h, const Executor& executor, bool force,
   // What this step found is what the next one starts from.
   std::swap(pairs_, lastPairs_);
   std::swap(caches_, lastCaches_);
-  std::swap(constraints_, lastConstraints_);
+  lastPoints_.clear();
+  for (const Constraint& c : constraints_)
+    lastPoints_.push_back(
+        {c.anchor, c.normalImpulse, c.tangentImpulse1 * c.tangent1 + c.tangentImpulse2 * c.tangent2, c.featureId, 0});
   std::swap(pairFirstConstraint_, lastPairFirstConstraint_);
   std::swap(supports_, lastSupports_);
   return {};

@@ -336,8 +336,20 @@ class RigidWorld {
   std::vector<double> endDepth_;  // Rollback: per pair, how deep it ends the chunk, m
   std::vector<double> margins_;
   std::vector<NarrowPhaseOutcome> outcomes_;
-  std::vector<Constraint> constraints_, lastConstraints_;
-  std::vector<Index> pairFirstConstraint_, lastPairFirstConstraint_;  // per pair, CSR into constraints
+  // What the next step's warm start keeps of a contact point (64 bytes, where the solver's
+  // Constraint takes 576): where it was in body A's frame, its impulses, its feature. No
+  // padding: checkpoints write it as bytes.
+  struct WarmPoint {
+    Eigen::Vector3d anchor;
+    double normalImpulse = 0;         // N s
+    Eigen::Vector3d frictionImpulse;  // both tangents' impulses as one world vector, N s
+    std::uint32_t featureId = 0;
+    std::uint32_t unused = 0;
+  };
+  static_assert(sizeof(WarmPoint) == 64);
+  std::vector<Constraint> constraints_;
+  std::vector<WarmPoint> lastPoints_;  // the last step's points, pair by pair as its constraints were
+  std::vector<Index> pairFirstConstraint_, lastPairFirstConstraint_;  // per pair, CSR into constraints_ / lastPoints_
   static constexpr int kColours = 64;  // colours of the parallel passes; more: one serial colour
   // A support contact as the solver sees it: the body is B, the held point A.
   struct Support {
