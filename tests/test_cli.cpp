@@ -259,7 +259,7 @@ TEST(Cli, StabilityFailureExitsWithThreeAndNamesTheParticle) {
 
 TEST(Cli, SceneEffectsAndTheirTimesAreReported) {
   // A scene without effects lists none; flag-wind and hanging-cloth list theirs, each
-  // with the CPU time spent in it.
+  // with the CPU time spent in it (flag-wind keeps its folds apart with self-collision).
   const nlohmann::json plain = runJson("run flag --size 8 --steps 5");
   ASSERT_TRUE(plain.is_object());
   EXPECT_EQ(plain["effects"], nlohmann::json::array());
@@ -268,7 +268,7 @@ TEST(Cli, SceneEffectsAndTheirTimesAreReported) {
   const nlohmann::json wind = runJson("run flag-wind --size 10 --steps 50 --threads 2");
   ASSERT_TRUE(wind.is_object());
   EXPECT_EQ(wind["status"], "ok");
-  EXPECT_EQ(wind["effects"], (nlohmann::json{"drag", "wind"}));
+  EXPECT_EQ(wind["effects"], (nlohmann::json{"drag", "wind", "self_collision"}));
   EXPECT_GT(wind["effect_cpu_seconds"]["wind"].get<double>(), 0);
   const nlohmann::json hanging = runJson("run hanging-cloth --size 10 --steps 50");
   ASSERT_TRUE(hanging.is_object());
@@ -315,7 +315,7 @@ TEST(Cli, OptionsOverrideTheScene) {
   EXPECT_EQ(j["integrator"], "midpoint");
   EXPECT_EQ(j["dt"], 1e-4);
   EXPECT_EQ(j["steps"], 4);
-  EXPECT_EQ(j["effects"], (nlohmann::json{"wind"}));
+  EXPECT_EQ(j["effects"], (nlohmann::json{"wind", "self_collision"}));
 }
 
 // Integers are read in base 10 (CLI11 alone would read "010" as octal 8), also after white space.

@@ -681,6 +681,14 @@ std::vector<std::string> Simulation<S>::warnings() const {
       out.push_back(w.str());
     }
   }
+  // Self-collision off: nothing keeps a cloth from passing through itself or another cloth.
+  // A run that ended so says it (the start is not kept for this, so the count is of now).
+  if (!self_ && model_->triangleCount() > 1 && stepCount_ > startStep_)
+    if (const std::int64_t now = selfIntersectionCount(); now > 0)
+      out.push_back(std::to_string(now) + (now == 1 ? " pair" : " pairs") +
+                    " of triangles sharing no particle intersect now: self-collision is off, so nothing keeps cloth "
+                    "from passing through itself or through another cloth; turn it on (SimulationOptions::"
+                    "selfCollision, \"self_collision\" in a scene file) where cloth folds or cloths meet");
   if (const std::int64_t tunnelled = tunnelledCount(); tunnelled > 0)
     out.push_back(std::to_string(tunnelled) + (tunnelled == 1 ? " particle" : " particles") +
                   " went through an obstacle over the run (they ended inside it or beyond a thin one): " +

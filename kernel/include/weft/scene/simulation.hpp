@@ -123,7 +123,8 @@ class Simulation {
   /// - with self-collision on: a cloth that started with pairs of triangles intersecting
   ///   (startIntersectionCount(); the pass cannot undo them), and one that has more now
   ///   than at the start (selfIntersectionCount(): it passed through itself), with what to
-  ///   change;
+  ///   change; with it off, after a step, a cloth whose triangles intersect now (nothing kept
+  ///   it from passing through itself), with the option that would;
   /// - rigid bodies let into each other deeper than RigidStats::kDeepShare of the thinner
   ///   piece's inner radius (RigidStats::deepestShare), naming them, the depth, the step and
   ///   what to change;
@@ -136,8 +137,8 @@ class Simulation {
   ///   first step, the same when dt / (4 x that limit), the least a step can take, is
   ///   kStiffSubsteps or more (so a run that will crawl says why before it starts).
   /// "The start" is the state the simulation was built with, or the last one given to
-  /// setState() or load()/restore(). Empty when there is nothing to say. With self-collision
-  /// on it runs the exact intersection check (a BVH built for the call).
+  /// setState() or load()/restore(). Empty when there is nothing to say. On a model with
+  /// triangles it runs the exact intersection check (a BVH built for the call, once per state).
   std::vector<std::string> warnings() const;
   /// The mean substeps a step of adaptive rk45 from which warnings() speaks of stiffness.
   static constexpr double kStiffSubsteps = 100;
