@@ -1,13 +1,18 @@
 // BM_Rigid_*: rigid-body steps (weft/rigid/rigid_world.hpp).
 //
-//   BM_Rigid_Pile/method:M/threads:T   one step of the `pile` scene (1000 convex bodies in
+//   BM_Rigid_Pile/method:M/threads:T/redo:R
+//                                      one step of the `pile` scene (1000 convex bodies in
 //                                      a bin) after 1.5 s of settling (bodies falling and
 //                                      landing, most of them touching), narrow phase M
-//                                      (0 exact, 1 OFG, 2 witness), T threads. Counters:
+//                                      (0 exact, 1 OFG, 2 witness), T threads, with
+//                                      RigidOptions::redoDeepSteps R (1, the default: the
+//                                      end-of-step check and the steps taken again in
+//                                      halves; 0 without, witness only). Counters:
 //                                      bodies, contacts, pairs (candidates), touching_pairs;
 //                                      in_bin, below_floor, mean_height and mean_speed of the
 //                                      settled state (pile_summary.hpp, beside
-//                                      BM_Peer_Bullet_Pile's); allocs_per_iteration (0).
+//                                      BM_Peer_Bullet_Pile's); allocs_per_iteration (0);
+//                                      redone_steps (a share of the timed steps).
 //   BM_Rigid_Stack/threads:T           one step of the 10-box stack at rest.
 // The world is reset to the settled state every 60 steps so each configuration times the
 // same motion.
@@ -26,13 +31,14 @@ struct Settled {
   weft::RigidState state;
 };
 
-const Settled& settledPile(weft::NarrowPhaseMethod method) {
-  static std::unique_ptr<Settled> cache[3];
-  std::unique_ptr<Settled>& s = cache[static_cast<int>(method)];
+const Settled& settledPile(weft::NarrowPhaseMethod method, bool redo) {
+  static std::unique_ptr<Settled> cache[3][2];
+  std::unique_ptr<Settled>& s = cache[static_cast<int>(method)][redo];
   if (!s) {
     s = std::make_unique<Settled>();
     s->options = weft::pileScene(1000);
     s->options.narrowPhase.method = method;
+    s->options.redoDeepSteps = redo;
     weft::Executor exec(2);
     weft::RigidWorld world(s->options, {0, -9.81, 0});
     for (int i = 0; i < 90; ++i) world.step(weft::rigidSceneTimeStep(), exec);
@@ -43,13 +49,13 @@ const Settled& settledPile(weft::NarrowPhaseMethod method) {
 
 void BM_Rigid_Pile(benchmark::State& st) {
   const auto method = static_cast<weft::NarrowPhaseMethod>(st.range(0));
-  const Settled& settled = settledPile(method);
+  const Settled& settled = settledPile(method, st.range(2) != 0);
   weft::Executor exec(static_cast<int>(st.range(1)));
   weft::RigidWorld world(settled.options, {0, -9.81, 0});
   world.setState(settled.state);
   for (int i = 0; i < 5; ++i) world.step(weft::rigidSceneTimeStep(), exec);  // warm start, caches
   int k = 0;
-  std::int64_t allocations = 0;
+  std::int64_t allocations = 0, redone = 0;
   for (auto _ : st) {
     if (++k == 60) {
       st.PauseTiming();
@@ -60,6 +66,7 @@ void BM_Rigid_Pile(benchmark::State& st) {
     const std::int64_t before = weftbench::allocationCount();
     benchmark::DoNotOptimize(world.step(weft::rigidSceneTimeStep(), exec));
     allocations += weftbench::allocationCount() - before;
+    redone += world.lastStats().redoneSteps;
   }
   st.counters["bodies"] = static_cast<double>(world.model().bodyCount());
   st.counters["contacts"] = static_cast<double>(world.lastStats().contacts);
@@ -74,11 +81,14 @@ void BM_Rigid_Pile(benchmark::State& st) {
   }
   summary.report(st);
   st.counters["allocs_per_iteration"] = static_cast<double>(allocations) / static_cast<double>(st.iterations());
+  st.counters["redone_steps"] = static_cast<double>(redone) / static_cast<double>(st.iterations());
   st.SetLabel(weft::narrowPhaseMethodName(method));
 }
 BENCHMARK(BM_Rigid_Pile)
-    ->ArgNames({"method", "threads"})
-    ->ArgsProduct({{0, 1, 2}, {1, 2}})
+    ->ArgNames({"method", "threads", "redo"})
+    ->ArgsProduct({{0, 1, 2}, {1, 2}, {1}})
+    ->Args({2, 1, 0})
+    ->Args({2, 2, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

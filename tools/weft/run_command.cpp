@@ -480,7 +480,12 @@ std::vector<std::string> unusedSceneSettings(const RunOptions& o, const weft::Sc
       const char* speculative = "this run's is speculative";
       noteKey(rigid.rollbackPenetration != defaultRigid.rollbackPenetration, "rigid_bodies.rollback_penetration",
               rollback, speculative);
-      noteKey(rigid.maxHalvings != defaultRigid.maxHalvings, "rigid_bodies.max_halvings", rollback, speculative);
+      if (!rigid.redoDeepSteps)  // (redone steps are halved at most max_halvings times too)
+        noteKey(rigid.maxHalvings != defaultRigid.maxHalvings, "rigid_bodies.max_halvings",
+                "time_of_impact \"rollback\" or redo_deep_steps", "this run has neither");
+    } else {
+      noteKey(rigid.redoDeepSteps != defaultRigid.redoDeepSteps, "rigid_bodies.redo_deep_steps",
+              "time_of_impact \"speculative\"", "this run's is rollback");
     }
     const char* pairs = "pairs of boxes and hulls";
     const std::string spheres = spheresOnly(spec);
@@ -971,8 +976,9 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["body_energy"] = rigid->energy();
       j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
       j["time_of_impact"] = weft::rigidTimeOfImpactName(rigid->options().timeOfImpact);
-      j["body_chunks"] = total.chunks;        // over the run (one per step unless rollback)
-      j["body_rollbacks"] = total.rollbacks;  // chunks cut or taken back, over the run
+      j["body_chunks"] = total.chunks;             // over the run (one per step unless rollback)
+      j["body_rollbacks"] = total.rollbacks;       // chunks cut or taken back, over the run
+      j["body_redone_steps"] = total.redoneSteps;  // speculative steps taken again in chunks (too deep)
       j["narrow_queries"] = total.narrowQueries;
       j["witness_hit_rate"] = total.narrowQueries > 0
                                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)
@@ -1014,7 +1020,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
           << sim.lastParticleBodyContacts().contacts << " particle contacts, " << rigid->lastStats().supportContacts
           << " support contacts, narrow phase " << weft::narrowPhaseMethodName(rigid->options().narrowPhase.method)
           << ", time of impact " << weft::rigidTimeOfImpactName(rigid->options().timeOfImpact) << " (" << total.chunks
-          << " chunks, " << total.rollbacks << " cut or taken back)"
+          << " chunks, " << total.rollbacks << " cut or taken back, " << total.redoneSteps
+          << (total.redoneSteps == 1 ? " step" : " steps") << " taken again in halves)"
           << ", witness hit rate "
           << (total.narrowQueries > 0
                   ? static_cast<double>(total.witnessHits) / static_cast<double>(total.narrowQueries)

@@ -110,7 +110,8 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
             "particle_thickness",
             "time_of_impact",
             "rollback_penetration",
-            "max_halvings"});
+            "max_halvings",
+            "redo_deep_steps"});
   RigidOptions o;
   const std::string method = r.choice(j, f, "narrow_phase", "witness", {"exact", "ofg", "witness"});
   o.narrowPhase.method = method == "exact" ? NarrowPhaseMethod::Exact
@@ -139,6 +140,7 @@ RigidOptions readRigidBodies(const Reader& r, const Json& j, const std::string& 
                        : RigidTimeOfImpact::Speculative;
   o.rollbackPenetration = r.anyNumber(j, f, "rollback_penetration", o.rollbackPenetration);
   o.maxHalvings = r.anyInt(j, f, "max_halvings", o.maxHalvings);
+  o.redoDeepSteps = r.boolean(j, f, "redo_deep_steps", o.redoDeepSteps);
   o.particleThickness = r.anyNumber(j, f, "particle_thickness", o.particleThickness);
   const std::string fb = Reader::join(f, "bodies");
   if (!j.contains("bodies")) r.fail(fb, "is required: a non-empty array of rigid bodies");

@@ -58,6 +58,7 @@ void RigidStats::add(const RigidStats& s) {
   chunks += s.chunks;
   rollbacks += s.rollbacks;
   halvingLimitHits += s.halvingLimitHits;
+  redoneSteps += s.redoneSteps;
   maxPenetration = std::max(maxPenetration, s.maxPenetration);
   if (s.deepestShare > deepestShare) {
     deepestShare = s.deepestShare;

@@ -117,7 +117,7 @@ void RigidWorld::reservePairs(std::size_t cap) {
   for (auto* v : {&pairs_, &lastPairs_}) v->reserve(cap);
   for (auto* v : {&caches_, &lastCaches_}) v->reserve(cap);
   manifolds_.reserve(cap);
-  if (rollback()) endDepth_.reserve(cap);
+  if (chunked()) endDepth_.reserve(cap);
   margins_.reserve(cap);
   outcomes_.reserve(cap);
   constraints_.reserve(4 * cap);
@@ -330,8 +330,8 @@ void copyState(const RigidState& from, RigidState& to) {
 
 StepStatus RigidWorld::step(double h, const Executor& executor) {
   if (!(std::isfinite(h) && h > 0)) detail::rejectField("RigidWorld::step: h", h, "finite and > 0 (s)");
-  double shorter = 0;
-  if (!rollback()) {
+  if (!rollback() && !options_.redoDeepSteps) {
+    double shorter = 0;
     const StepStatus s = stepChunk(h, executor, true, shorter);
     supportInput_.clear();  // supports hold for one step
     if (!s.ok()) return s;
@@ -339,9 +339,17 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
     total_.add(last_);
     return s;
   }
+  return stepInChunks(h, executor);
+}
+
+StepStatus RigidWorld::stepInChunks(double h, const Executor& executor) {
+  double shorter = 0;
   // The original design's loop: chunks of the step, each cut before it is taken while a
   // pair apart could meet too deep within it, or taken back after it ended too deep; the
   // next chunk may be twice as long again. Chunk lengths are h / 2^k, so they add up to h.
+  // Speculative contacts with redoDeepSteps take the same loop with no cut before a chunk
+  // and a deeper limit after it (kDeepShare of the thinner piece): the whole step is one
+  // chunk unless it let bodies into each other.
   // Bodies that start (or are pushed) deeper into each other than the limit end chunk
   // after chunk too deep however short it is: rollback has no hold on them, and the loop
   // could take up to 2^maxHalvings chunks, each twice. After 16 (maxHalvings + 1) chunks
@@ -380,6 +388,7 @@ StepStatus RigidWorld::step(double h, const Executor& executor) {
   }
   state_.time = stepBegin_.time + h;
   supportInput_.clear();
+  if (!rollback() && step.chunks > 1) step.redoneSteps = 1;
   last_ = step;
   total_.add(last_);
   return {};
@@ -472,9 +481,15 @@ StepStatus RigidWorld::stepChunk(double h, const Executor& executor, bool force,
     advanceSeparations(hs, executor);
   }
   applyRestitution();
+  if (!rollback() && !force && endsTooDeep(executor, true)) {
+    // A speculative chunk that let bodies into each other (redoDeepSteps): taken back, halved.
+    shorter = h / 2;
+    state_ = backup_;
+    return {};
+  }
   if (rollback()) {
     // Taken back when a pair ended deeper than the limit and than it started.
-    if (endsTooDeep(executor)) {
+    if (endsTooDeep(executor, false)) {
       shorter = h / 2;
       if (!force) {
         state_ = backup_;
@@ -573,15 +588,34 @@ void RigidWorld::broadPhase(double h, const Executor& executor, bool& overflow, 
   last_.candidatePairs = static_cast<std::int64_t>(pairs_.size());
 }
 
-bool RigidWorld::endsTooDeep(const Executor& executor) {
+bool RigidWorld::endsTooDeep(const Executor& executor, bool share) {
   // The narrow phase again at the end of the chunk (a copy of each pair's cache: the
   // witness answers as the exact test does, cheaply for pairs that moved little); a
   // rotating body can meet another with a point its start manifold did not hold.
   const RigidModel& m = *model_;
   const Index count = static_cast<Index>(pairs_.size());
   endDepth_.resize(static_cast<std::size_t>(count));  // within the reserved capacity
+  const auto limit = [&](Index k) {
+    return share
+               ? RigidStats::kDeepShare * std::min(m.pieces[pairs_[k].a].innerRadius, m.pieces[pairs_[k].b].innerRadius)
+               : options_.rollbackPenetration;
+  };
+  const auto startDepth = [&](Index k) {
+    const ContactManifold& man = manifolds_[k];
+    double start = 0;
+    for (int p = 0; p < man.pointCount; ++p) start = std::max(start, -man.points[p].separation);
+    return start;
+  };
   executor.parallelFor(count, 16, [&](Index begin, Index end) {
     for (Index k = begin; k < end; ++k) {
+      // The deep limit (speculative steps): a pair whose start depth and twice its motion
+      // bound over the chunk (the margin's growth, from the velocities at its start; twice,
+      // for what the solve adds) stay within the limit is not queried again.
+      if (share && options_.continuous &&
+          startDepth(k) + 2 * (margins_[k] - options_.speculativeDistance) <= limit(k)) {
+        endDepth_[k] = 0;
+        continue;
+      }
       const Pair pair = pairs_[k];
       const RigidPiece& pa = m.pieces[pair.a];
       const RigidPiece& pb = m.pieces[pair.b];
@@ -603,13 +637,8 @@ bool RigidWorld::endsTooDeep(const Executor& executor) {
       endDepth_[k] = depth;
     }
   });
-  for (Index k = 0; k < count; ++k) {
-    if (endDepth_[k] <= options_.rollbackPenetration) continue;
-    double start = 0;
-    const ContactManifold& man = manifolds_[k];
-    for (int p = 0; p < man.pointCount; ++p) start = std::max(start, -man.points[p].separation);
-    if (endDepth_[k] > start) return true;
-  }
+  for (Index k = 0; k < count; ++k)
+    if (endDepth_[k] > limit(k) && endDepth_[k] > startDepth(k)) return true;
   return false;
 }
 

@@ -127,6 +127,11 @@ struct RigidOptions {
   RigidTimeOfImpact timeOfImpact = RigidTimeOfImpact::Speculative;
   double rollbackPenetration = 0.005;  // Rollback: deepest penetration a chunk may end with, m (> 0)
   int maxHalvings = 12;                // Rollback: shortest chunk step / 2^maxHalvings (0..30)
+  // Speculative: a step that ends with two bodies let into each other deeper than
+  // RigidStats::kDeepShare of the thinner piece's inner radius (and deeper than they started)
+  // is taken back and taken again in halves, each halved again while it does so (at most
+  // maxHalvings times); the narrow phase runs again at the end of every step to tell
+  bool redoDeepSteps = true;
   // With particles in the same Simulation (rigid/particle_coupling.hpp):
   bool particleContacts = true;      // particles and bodies push each other
   bool particleSupports = true;      // held particles carry the bodies on them (SupportContact); acts
@@ -203,6 +208,7 @@ struct RigidStats {
   std::int64_t chunks = 0;            // Rollback: chunks taken (1 per step otherwise)
   std::int64_t rollbacks = 0;         // Rollback: chunks cut before or taken back after solving
   std::int64_t halvingLimitHits = 0;  // Rollback: chunks taken at the shortest length though too deep
+  std::int64_t redoneSteps = 0;       // Speculative: steps taken again in chunks (RigidOptions::redoDeepSteps)
   double maxPenetration = 0;          // deepest contact at the start of the step's solve, m (>= 0)
   /// The deepest contact between two bodies as a share of the thinner piece's innerRadius
   /// (1: the thinner piece's middle has reached the other's surface), its depth (m), its
@@ -248,7 +254,7 @@ class RigidWorld {
   /// Puts the state back where the last step started (the caller's step failed elsewhere).
   void undoStep() { state_ = stepStart(); }
   /// The state at the start of the last step (where the bodies came from).
-  const RigidState& stepStart() const { return rollback() ? stepBegin_ : backup_; }
+  const RigidState& stepStart() const { return chunked() ? stepBegin_ : backup_; }
   /// World pose of piece `p` in state `s` (std::invalid_argument for p outside [0, pieceCount())).
   Pose piecePose(Index p, const RigidState& s) const;
   /// Room for `capacity` support contacts (allocates: call before stepping).
@@ -321,7 +327,8 @@ class RigidWorld {
   RigidState state_, backup_;  // backup_: where the current chunk started
   RigidState stepBegin_;       // Rollback: where the step started
   bool rollback() const { return options_.timeOfImpact == RigidTimeOfImpact::Rollback; }
-  void reservePairs(std::size_t capacity);  // every per-pair buffer (the constructor)
+  bool chunked() const { return rollback() || options_.redoDeepSteps; }  // steps in stepInChunks
+  void reservePairs(std::size_t capacity);                               // every per-pair buffer (the constructor)
   RigidOptions options_;
   Eigen::Vector3d gravity_;
   RigidStats last_, total_;
@@ -394,8 +401,11 @@ class RigidWorld {
   StepStatus stepChunk(double h, const Executor& executor, bool force, double& shorter);
   void broadPhase(double h, const Executor& executor, bool& overflow, Index& nonFinite);
   void narrowPhase(double h, const Executor& executor);
-  /// Rollback: whether a pair ends the chunk deeper than the limit and than it started.
-  bool endsTooDeep(const Executor& executor);
+  /// Rollback: whether a pair ends the chunk deeper than the limit and than it started (the
+  /// limit: rollbackPenetration, or with `share` kDeepShare of the thinner piece's inner radius).
+  bool endsTooDeep(const Executor& executor, bool share);
+  /// The loop over the chunks of a step of length h (Rollback, or speculative with redoDeepSteps).
+  StepStatus stepInChunks(double h, const Executor& executor);
   void buildConstraints(double h);
   /// Colours the manifolds so that no two of one colour share a dynamic body (greedy, in
   /// pair order: the same colours for any thread count); the passes below solve a colour's
