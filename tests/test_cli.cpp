@@ -1226,7 +1226,43 @@ TEST(Cli, MemoryEstimateIsWithinAQuarterOfThePeakForEveryBuiltInScene) {
     const double estimate = j.value("memory_estimate_mb", 0.0), peak = j.value("peak_rss_mb", 0.0);
     EXPECT_GT(peak, 0);
     EXPECT_NEAR(estimate / peak, 1.0, 0.25) << estimate << " MB estimated, " << peak << " MB peak";
+    // The figure for a folded cloth is above it with self-collision (by 7.3 kB a triangle)
+    // and the same without.
+    bool self = false;
+    for (const nlohmann::json& effect : j.value("effects", nlohmann::json::array()))
+      self = self || effect == "self_collision";
+    const double folded = j.value("memory_estimate_folded_mb", 0.0);
+    if (self)
+      EXPECT_NEAR(folded - estimate, 7300.0 * j.value("triangles", 0) / (1024.0 * 1024.0), 1e-6);
+    else
+      EXPECT_EQ(folded, estimate);
   }
+}
+
+TEST(Cli, TheMemoryOfAClothFoldedOnItselfIsEstimatedAndWarnedOfBeforeTheRun) {
+  if (weft::test::kSanitized) GTEST_SKIP() << "a sanitizer's shadow memory and quarantine are not the program's";
+  // twist wrings its cloth: self-collision's candidate lists grow with the folds, past the
+  // estimate for the cloth as it starts, and stay under the one for a folded cloth.
+  const nlohmann::json j = runJson("run twist --steps 3000 --threads 2");
+  const double estimate = j.value("memory_estimate_mb", 0.0), folded = j.value("memory_estimate_folded_mb", 0.0),
+               peak = j.value("peak_rss_mb", 0.0);
+  EXPECT_GT(folded, 1.5 * estimate);
+  EXPECT_GT(peak, 0);
+  EXPECT_LT(peak, folded) << estimate << " MB estimated, " << folded << " MB folded";
+  // A limit between the two figures: the run starts and says it may not fit later.
+  const int between = static_cast<int>((estimate + folded) / 2);
+  const CliRun warned = weft("run twist --steps 1 --max-memory " + std::to_string(between), true);
+  EXPECT_EQ(warned.exitCode, 0) << warned.out;
+  EXPECT_NE(warned.out.find("once its cloth folds on itself"), std::string::npos) << warned.out;
+  EXPECT_NE(warned.out.find("--max-memory allows " + std::to_string(between) + " MiB"), std::string::npos)
+      << warned.out;
+  // Under the first: refused, as any run that does not fit.
+  const CliRun refused =
+      weft("run twist --steps 1 --max-memory " + std::to_string(static_cast<int>(estimate) - 4), true);
+  EXPECT_EQ(refused.exitCode, 2) << refused.out;
+  // Without self-collision nothing is said.
+  const CliRun flat = weft("run flag --steps 1 --max-memory " + std::to_string(between), true);
+  EXPECT_EQ(flat.out.find("folds on itself"), std::string::npos) << flat.out;
 }
 
 TEST(Cli, NoSubcommandIsAnError) {

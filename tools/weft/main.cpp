@@ -334,7 +334,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, weft::kMaxOfgFaces));
   cmd->add_option("--max-memory", run.maxMemory,
                   "MiB the run may take (default: what the machine has available); a scene that needs more "
-                  "is refused before anything is allocated")
+                  "is refused before anything is allocated (one whose self-collision may need more once its cloth "
+                  "folds is warned of)")
       ->check(finitePositive);
   cmd->add_option("--time-of-impact", run.timeOfImpact,
                   "Rigid bodies: speculative (contacts before touching, one solve a step; default) | rollback "

@@ -680,16 +680,25 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
   const weft::MemoryEstimate need = weft::estimateSceneMemory(spec);
   constexpr double kRuntimeBytes = 1.5 * 1024 * 1024, kMeshImportBytes = 17.0 * 1024 * 1024;
   const double estimate = residentBytes() + kRuntimeBytes + (need.readsMeshes ? kMeshImportBytes : 0) + need.bytes;
+  // With self-collision, what the candidate and contact lists take once the cloth has
+  // folded on itself (the same as `estimate` without).
+  const double foldedEstimate = estimate + (need.foldedBytes - need.bytes);
   const double limit = o.maxMemory ? *o.maxMemory * 1024 * 1024 : availableBytes();
+  const auto limitText = [&] {
+    return (o.maxMemory ? "--max-memory allows " : "this machine has ") + gib(limit) +
+           (o.maxMemory ? "" : " available (--max-memory sets the limit)");
+  };
   if (estimate > limit) {
     std::cerr << "weft run: " << spec.name << " needs about " << gib(estimate) << " (" << need.particles
               << " particles, " << need.springs << " springs, " << need.triangles << " triangles, "
               << (spec.precision == weft::Precision::Float ? "float" : "double") << ", "
-              << weft::integratorName(spec.simulation.integrator) << "); "
-              << (o.maxMemory ? "--max-memory allows " : "this machine has ") << gib(limit)
-              << (o.maxMemory ? "" : " available (--max-memory sets the limit)") << "\n";
+              << weft::integratorName(spec.simulation.integrator) << "); " << limitText() << "\n";
     return 2;
   }
+  if (foldedEstimate > limit)  // it starts, and may run out once its cloth folds
+    std::cerr << "weft run: warning: " << spec.name << " needs about " << gib(estimate) << " to start and up to "
+              << gib(foldedEstimate) << " once its cloth folds on itself (self-collision's candidate lists, "
+              << need.triangles << " triangles); " << limitText() << "\n";
   weft::AssembledScene<S> assembled = weft::assembleScene<S>(spec);
   weft::SimulationOptions options = assembled.options;
   options.profileEffects = true;  // two clock reads per block and effect; none without effects
@@ -991,6 +1000,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
     }
     j["peak_rss_mb"] = peakMb;
     j["memory_estimate_mb"] = estimate / (1024.0 * 1024.0);  // asked before assembling (cloth meshes not counted)
+    // ... with self-collision, for a cloth folded on itself (its candidate lists full)
+    j["memory_estimate_folded_mb"] = foldedEstimate / (1024.0 * 1024.0);
     std::cout << j.dump() << std::endl;
   } else {
     std::ostringstream out;
@@ -1067,7 +1078,12 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << "\n"
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)
-        << " MiB estimated before assembling)\n";
+        << " MiB estimated before assembling"
+        << (foldedEstimate > estimate
+                ? ", up to " + std::to_string(static_cast<long long>(std::ceil(foldedEstimate / (1024.0 * 1024.0)))) +
+                      " MiB once the cloth folds on itself"
+                : std::string())
+        << ")\n";
     if (o.resume) out << "  resumed from " << *o.resume << "\n";
     if (o.checkpoint) out << "  checkpoint   " << *o.checkpoint << "\n";
     if (frames)

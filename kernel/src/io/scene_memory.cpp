@@ -94,6 +94,13 @@ constexpr double kBytesPerTriangle = 12;
 // and the expansion's record of each triangle (64 bytes) since.
 // A folded cloth lists more candidates than a flat one, so this is the floor of a run.
 constexpr double kBytesPerSelfCollisionTriangle = 1064;
+// What a cloth folded on itself adds to that: `twist` (32^2, 1922 triangles, 2 threads)
+// peaks at 26.8 MiB at its end against 14.1 estimated from the rate above (2026-12-01, AMD
+// EPYC). Its self-collision holds then 59,700 candidate pairs (31 a triangle) and 11.7 MB:
+// their primitive pairs 4.0 MB, the pair query's buffers 3.1 MB, the response's contacts
+// and shares 1.6 and 2.3 MB, the pairs 0.5 MB. Candidates are a local count (the triangles
+// within the thickness of each), so the rate is per triangle: 13.3 MB / 1922, rounded up.
+constexpr double kBytesPerFoldedTriangle = 7300;
 // Resident memory a rigid body's share of the world takes once a pile of them has landed
 // (pairs, caches, manifolds, constraints: their buffers are reserved for 16 pairs a piece
 // and become resident as the contacts fill them), measured on the `pile` (1005 bodies):
@@ -150,6 +157,7 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
       (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
       kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
   e.bytes = std::max(simulation, builderBytes(particles, springs, triangles, isFloat));
+  e.foldedBytes = e.bytes + (scene.simulation.selfCollision.enabled ? kBytesPerFoldedTriangle * triangles : 0.0);
   return e;
 }
 
