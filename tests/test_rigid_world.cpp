@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "support/sanitizers.hpp"
@@ -139,16 +141,21 @@ TEST(RigidContact, BodiesLetIntoEachOtherAreNamedWithTheirDepthAndTime) {
     EXPECT_GE(t.deepestA, 0);
     EXPECT_GT(t.deepestB, t.deepestA);
     EXPECT_GT(t.deepestTime, 0.0);
-    // The start of a step, or of a part of one: a speculative step that let bodies into each
-    // other is taken again in halves (redoDeepSteps), which cannot hold boxes falling 2.5 m a step.
-    EXPECT_EQ(std::fmod(t.deepestTime, std::ldexp(0.5, -RigidOptions{}.maxHalvings)), 0.0);
+    // The start of a step, or of a part of one, within the run: a speculative step that let
+    // bodies into each other is taken again in halves (redoDeepSteps), which cannot hold
+    // boxes falling 2.5 m a step.
+    EXPECT_LT(t.deepestTime, world.state().time);
     EXPECT_GT(t.redoneSteps, 0);
   }
-  for (const double dt : {rigidSceneTimeStep(), 0.5}) {  // and Simulation::warnings says so, or nothing
+  // And Simulation::warnings says so, or nothing; with what to change (the redone steps
+  // among it when they are off).
+  for (const auto& [dt, redo] :
+       std::initializer_list<std::pair<double, bool>>{{rigidSceneTimeStep(), true}, {0.5, true}, {0.5, false}}) {
     SimulationOptions options;
     options.dt = dt;
     options.threads = 1;
     options.rigid = stackScene(10);
+    options.rigid.redoDeepSteps = redo;
     Simulation<double> sim(ModelBuilder<double>().build(), options);
     ASSERT_TRUE(sim.run(20).ok());
     const std::vector<std::string> w = sim.warnings();
@@ -160,6 +167,8 @@ TEST(RigidContact, BodiesLetIntoEachOtherAreNamedWithTheirDepthAndTime) {
     EXPECT_THAT(w[0], ::testing::StartsWith("rigid bodies "));
     EXPECT_THAT(w[0], ::testing::HasSubstr(" (box"));
     EXPECT_THAT(w[0], ::testing::HasSubstr("Reduce dt (now 0.5 s)"));
+    EXPECT_THAT(w[0], ::testing::HasSubstr("--time-of-impact rollback"));
+    EXPECT_EQ(w[0].find("turn redo_deep_steps on") != std::string::npos, !redo) << w[0];
   }
   {  // Placed overlapping (a sphere's middle inside a box): named in the first step.
     RigidOptions o = stackScene(1);
@@ -259,8 +268,10 @@ TEST(RigidContact, RollbackKeepsALandingPileShallowWhereSpeculativeContactsDoNot
 TEST(RigidContact, ASpeculativeStepThatLetsBodiesIntoEachOtherIsTakenAgainInHalves) {
   // 300 bodies landing in a bin for 2 s. Without redoDeepSteps a body turning fast is let
   // more than kDeepShare of the thinner piece's inner radius into another (the run warns);
-  // with it (the default) the narrow phase runs again at the end of each step, such a step
-  // is taken back and taken again in halves, and no step ends with a pair that deep.
+  // with it (the default) the narrow phase runs again at the end of each step on the pairs
+  // that could have got that deep, such a step is taken back and taken again in halves, and
+  // this run ends no step with a pair that deep (a pair at rest struck by a third body is not
+  // looked at again: docs/rigid-bodies.md).
   Executor exec(2);
   double share[2] = {0, 0};
   std::int64_t redone[2] = {0, 0}, chunks[2] = {0, 0}, rollbacks[2] = {0, 0};

@@ -985,7 +985,7 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
       j["body_energy"] = rigid->energy();
       j["narrow_phase"] = weft::narrowPhaseMethodName(rigid->options().narrowPhase.method);
       j["time_of_impact"] = weft::rigidTimeOfImpactName(rigid->options().timeOfImpact);
-      j["body_chunks"] = total.chunks;             // over the run (one per step unless rollback)
+      j["body_chunks"] = total.chunks;             // over the run (one per step but under rollback and in redone steps)
       j["body_rollbacks"] = total.rollbacks;       // chunks cut or taken back, over the run
       j["body_redone_steps"] = total.redoneSteps;  // speculative steps taken again in chunks (too deep)
       j["narrow_queries"] = total.narrowQueries;

@@ -749,14 +749,16 @@ std::vector<std::string> Simulation<S>::warnings() const {
     };
     std::ostringstream w;
     w << "rigid bodies " << body(t.deepestA) << " and " << body(t.deepestB) << " were " << t.deepestDepth
-      << " m into each other in the step starting at t = " << t.deepestTime << " s, " << t.deepestShare
-      << " x the thinner piece's inner radius (" << t.deepestDepth / t.deepestShare
+      << " m into each other in the step, or the part of one, starting at t = " << t.deepestTime << " s, "
+      << t.deepestShare << " x the thinner piece's inner radius (" << t.deepestDepth / t.deepestShare
       << " m): the contacts let them pass into each other, so motions after that are not to be trusted. "
       << (t.deepestTime == 0 ? "If they were placed overlapping, move them apart; otherwise reduce " : "Reduce ")
       << "dt (now " << options_.dt << " s)"
-      << (rigid_->options().timeOfImpact == RigidTimeOfImpact::Speculative
+      << (rigid_->options().timeOfImpact == RigidTimeOfImpact::Rollback ? ""
+          : rigid_->options().redoDeepSteps
               ? " or take the rollback time of impact (--time-of-impact rollback)"
-              : "");
+              : ", turn redo_deep_steps on (RigidOptions::redoDeepSteps: such a step is taken again in halves) or "
+                "take the rollback time of impact (--time-of-impact rollback)");
     out.push_back(w.str());
   }
   return out;

@@ -93,7 +93,9 @@ struct RigidBodyDesc {
 /// How bodies that approach fast meet without passing through each other.
 /// Speculative: contacts are made before the bodies touch (within the speculative distance
 /// and, with `continuous`, the pair's motion over the step) and the solver lets each gap
-/// close and no more: one step, whatever the speed. Rollback: the original design's loop
+/// close and no more: one solve a step, whatever the speed (a step that still ends with two
+/// bodies let deep into each other is taken again in halves: RigidOptions::redoDeepSteps).
+/// Rollback: the original design's loop
 /// for bodies, as the particles do it: only touching contacts are solved; a step is
 /// advanced in chunks, a chunk is cut (halved) before it is taken while a pair that is
 /// apart could approach deeper than `rollbackPenetration` within it (the time of impact,
@@ -126,11 +128,12 @@ struct RigidOptions {
   Index maxPairs = 0;                 // capacity of candidate pairs; 0 = 16 per piece + 64; at most 2^28
   RigidTimeOfImpact timeOfImpact = RigidTimeOfImpact::Speculative;
   double rollbackPenetration = 0.005;  // Rollback: deepest penetration a chunk may end with, m (> 0)
-  int maxHalvings = 12;                // Rollback: shortest chunk step / 2^maxHalvings (0..30)
+  int maxHalvings = 12;                // Rollback and redoDeepSteps: shortest chunk step / 2^maxHalvings (0..30)
   // Speculative: a step that ends with two bodies let into each other deeper than
   // RigidStats::kDeepShare of the thinner piece's inner radius (and deeper than they started)
   // is taken back and taken again in halves, each halved again while it does so (at most
-  // maxHalvings times); the narrow phase runs again at the end of every step to tell
+  // maxHalvings times); the narrow phase runs again at the end of every step, on the pairs
+  // that could have got that deep, to tell. Off: one solve a step, and such a step warns.
   bool redoDeepSteps = true;
   // With particles in the same Simulation (rigid/particle_coupling.hpp):
   bool particleContacts = true;      // particles and bodies push each other
@@ -205,14 +208,15 @@ struct RigidStats {
   std::int64_t witnessHits = 0;       // narrow phase queries answered by the cached witness
   std::int64_t narrowQueries = 0;     // hull-hull queries in all
   std::int64_t supportContacts = 0;   // contacts with held points (SupportContact)
-  std::int64_t chunks = 0;            // Rollback: chunks taken (1 per step otherwise)
+  std::int64_t chunks = 0;            // chunks taken (1 per step, more under Rollback and in redone steps)
   std::int64_t rollbacks = 0;         // Rollback: chunks cut before or taken back after solving
   std::int64_t halvingLimitHits = 0;  // Rollback: chunks taken at the shortest length though too deep
   std::int64_t redoneSteps = 0;       // Speculative: steps taken again in chunks (RigidOptions::redoDeepSteps)
   double maxPenetration = 0;          // deepest contact at the start of the step's solve, m (>= 0)
   /// The deepest contact between two bodies as a share of the thinner piece's innerRadius
   /// (1: the thinner piece's middle has reached the other's surface), its depth (m), its
-  /// pair of bodies (-1 when there is none) and the time its step started (s). Above
+  /// pair of bodies (-1 when there is none) and the time its step, or the part of a step
+  /// (a chunk of Rollback or of a redone step), started (s). Above
   /// kDeepShare the contacts have let the bodies into each other: the step is too long
   /// for them, or they started overlapping.
   static constexpr double kDeepShare = 0.5;
@@ -325,7 +329,7 @@ class RigidWorld {
   };
   std::shared_ptr<const RigidModel> model_;
   RigidState state_, backup_;  // backup_: where the current chunk started
-  RigidState stepBegin_;       // Rollback: where the step started
+  RigidState stepBegin_;       // where the step started (when taken in chunks: chunked())
   bool rollback() const { return options_.timeOfImpact == RigidTimeOfImpact::Rollback; }
   bool chunked() const { return rollback() || options_.redoDeepSteps; }  // steps in stepInChunks
   void reservePairs(std::size_t capacity);                               // every per-pair buffer (the constructor)
