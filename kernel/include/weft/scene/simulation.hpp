@@ -249,7 +249,8 @@ class Simulation {
   /// The format version of checkpoint files this build writes and reads.
   // 2: the self-collision section; 3: its pushes; 4: implicit Euler's multigrid step (auto) and
   // StepWork::multigridSolves; 5: the run's particle-body contacts, with the bodies that went
-  // through a cloth; 6: the rigid contacts' warm start kept as points (RigidWorld::WarmPoint) and RigidStats::redoneSteps
+  // through a cloth; 6: the rigid contacts' warm start kept as points (RigidWorld::WarmPoint) and
+  // RigidStats::redoneSteps
   static constexpr std::uint32_t kCheckpointFormat = 6;
 
  private:
