@@ -1079,10 +1079,8 @@ int run(const RunOptions& o, const weft::SceneSpec& spec) {
         << "  state hash   " << hash << "\n"
         << "  peak memory  " << peakMb << " MiB resident (" << estimate / (1024.0 * 1024.0)
         << " MiB estimated before assembling"
-        << (foldedEstimate > estimate
-                ? ", up to " + std::to_string(static_cast<long long>(std::ceil(foldedEstimate / (1024.0 * 1024.0)))) +
-                      " MiB once the cloth folds on itself"
-                : std::string())
+        << (foldedEstimate > estimate ? ", up to " + gib(foldedEstimate) + " once the cloth folds on itself"
+                                      : std::string())
         << ")\n";
     if (o.resume) out << "  resumed from " << *o.resume << "\n";
     if (o.checkpoint) out << "  checkpoint   " << *o.checkpoint << "\n";

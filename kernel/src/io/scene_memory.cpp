@@ -157,8 +157,11 @@ MemoryEstimate estimateSceneMemory(const SceneSpec& scene) {
       r.spring * springs + kBytesPerTriangle * triangles +
       (scene.simulation.selfCollision.enabled ? kBytesPerSelfCollisionTriangle * triangles : 0.0) +
       kBytesPerRigidBody * static_cast<double>(e.rigidBodies);
-  e.bytes = std::max(simulation, builderBytes(particles, springs, triangles, isFloat));
-  e.foldedBytes = e.bytes + (scene.simulation.selfCollision.enabled ? kBytesPerFoldedTriangle * triangles : 0.0);
+  const double building = builderBytes(particles, springs, triangles, isFloat);
+  e.bytes = std::max(simulation, building);
+  // (The folded lists grow during the run: beside the Simulation, not the builder.)
+  e.foldedBytes = std::max(
+      simulation + (scene.simulation.selfCollision.enabled ? kBytesPerFoldedTriangle * triangles : 0.0), building);
   return e;
 }
 

@@ -330,7 +330,7 @@ void copyState(const RigidState& from, RigidState& to) {
 
 StepStatus RigidWorld::step(double h, const Executor& executor) {
   if (!(std::isfinite(h) && h > 0)) detail::rejectField("RigidWorld::step: h", h, "finite and > 0 (s)");
-  if (!rollback() && !options_.redoDeepSteps) {
+  if (!chunked()) {
     double shorter = 0;
     const StepStatus s = stepChunk(h, executor, true, shorter);
     supportInput_.clear();  // supports hold for one step

@@ -119,7 +119,8 @@ std::int64_t sceneStepCount(const SceneSpec& scene);
 /// wrung, which cannot be known before the run: `bytes` counts them for a cloth as it
 /// starts (smooth, few candidates) and `foldedBytes` for a cloth folded as tightly as the
 /// built-in `twist` at its end (about 31 candidate pairs a triangle, 7.3 kB a triangle
-/// more), an upper figure for a run that folds. Without self-collision both are the same.
+/// more beside the Simulation; the larger of that and what building the model holds), an
+/// upper figure for a run that folds. Without self-collision both are the same.
 /// A test keeps `bytes` within 25 % of the peak resident memory of the built-in scenes
 /// (after their first step; the pile after it has landed) and `foldedBytes` above the
 /// peak of a run that wrings its cloth.

@@ -405,8 +405,8 @@ class RigidWorld {
   StepStatus stepChunk(double h, const Executor& executor, bool force, double& shorter);
   void broadPhase(double h, const Executor& executor, bool& overflow, Index& nonFinite);
   void narrowPhase(double h, const Executor& executor);
-  /// Rollback: whether a pair ends the chunk deeper than the limit and than it started (the
-  /// limit: rollbackPenetration, or with `share` kDeepShare of the thinner piece's inner radius).
+  /// Whether a pair ends the chunk deeper than the limit and than it started (the limit:
+  /// rollbackPenetration, or with `share` kDeepShare of the thinner piece's inner radius).
   bool endsTooDeep(const Executor& executor, bool share);
   /// The loop over the chunks of a step of length h (Rollback, or speculative with redoDeepSteps).
   StepStatus stepInChunks(double h, const Executor& executor);
