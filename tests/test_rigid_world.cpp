@@ -298,6 +298,67 @@ TEST(RigidContact, ASpeculativeStepThatLetsBodiesIntoEachOtherIsTakenAgainInHalv
   EXPECT_GT(chunks[1], steps);
 }
 
+TEST(RigidContact, HeldPointsHoldABodyInEveryChunkOfAStepTakenInChunks) {
+  // Two equal boxes fall side by side at 4 m/s: A onto a static floor, B onto four held
+  // points at the floor's height under its corners (SupportContact, as a cloth pinned
+  // there would hold it). They land in the same step, which rollback takes in chunks for
+  // A's sake: B's points must be kept apart in each chunk by the gap left at its start,
+  // not by the gap at the step's start again (B would sink by that gap once a chunk).
+  // Without A (no chunks) and with it, B ends its landing as shallow.
+  Executor exec(1);
+  const double half = 0.1, h = rigidSceneTimeStep();
+  const auto box = [&](double x) {
+    RigidBodyDesc b;
+    RigidShapeDesc s;
+    s.kind = RigidShapeDesc::Kind::Box;
+    s.halfExtents = {half, half, half};
+    b.shapes.push_back(s);
+    b.position = {x, half + 0.3, 0};
+    b.velocity = {0, -4, 0};
+    return b;
+  };
+  double deepest[2] = {0, 0};
+  std::int64_t chunks[2] = {0, 0};
+  for (const bool withA : {false, true}) {
+    RigidOptions o;
+    o.timeOfImpact = RigidTimeOfImpact::Rollback;
+    RigidBodyDesc floor;
+    floor.motion = BodyMotion::Static;
+    RigidShapeDesc slab;
+    slab.kind = RigidShapeDesc::Kind::Box;
+    slab.halfExtents = {1, 0.5, 1};
+    floor.shapes.push_back(slab);
+    floor.position = {0, -0.5, 0};
+    o.bodies.push_back(floor);
+    o.bodies.push_back(box(5));  // B, body 1
+    if (withA) o.bodies.push_back(box(0));
+    RigidWorld world(o, kGravity);
+    world.reserveSupports(4);
+    for (int k = 0; k < 60; ++k) {
+      SupportContact held[4];
+      for (int c = 0; c < 4; ++c) {
+        const Vec3 corner((c & 1) ? half : -half, -half, (c & 2) ? half : -half);
+        held[c].body = 1;
+        held[c].point = world.state().x[1] + world.state().q[1] * corner;
+        held[c].normal = Vec3::UnitY();
+        held[c].separation = held[c].point.y();
+        held[c].key = static_cast<std::uint64_t>(c);
+      }
+      world.setSupports(held, 4);
+      ASSERT_TRUE(world.step(h, exec).ok());
+      for (int c = 0; c < 4; ++c) {
+        const Vec3 corner((c & 1) ? half : -half, -half, (c & 2) ? half : -half);
+        deepest[withA] = std::max(deepest[withA], -(world.state().x[1] + world.state().q[1] * corner).y());
+      }
+    }
+    chunks[withA] = world.totalStats().chunks;
+  }
+  EXPECT_EQ(chunks[0], 60);
+  EXPECT_GT(chunks[1], 60) << "A's landing was to be taken in chunks";
+  EXPECT_LT(deepest[0], 0.001);
+  EXPECT_LT(deepest[1], 0.001) << "B sank into its held points in a step taken in chunks";  // (10 mm before)
+}
+
 TEST(RigidContact, RestitutionBouncesToTheExpectedHeight) {
   Executor exec(1);
   RigidOptions o;

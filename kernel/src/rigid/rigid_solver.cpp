@@ -486,15 +486,29 @@ void RigidWorld::integratePositions(double h, bool last, const Executor& executo
 void RigidWorld::buildSupports(double h) {
   // The held points of this step (SupportContact), as constraints on their body alone;
   // warm started from the last step's point with the same key.
+  // The points and gaps are those at the step's start. A later chunk of a step taken in
+  // chunks (chunked()) starts `elapsed` into it: its point is the same point of the body,
+  // carried with the body since the step's start, and its gap is the step's less what the
+  // body and the support closed of it since (the gap an earlier chunk let the body close
+  // is not offered again).
   const RigidModel& m = *model_;
   supports_.clear();
   const double scale = lastSubstep_ > 0 ? h / lastSubstep_ : 1.0;
+  const double elapsed = chunked() ? state_.time - stepBegin_.time : 0.0;
   auto last = lastSupports_.begin();
   for (const SupportContact& in : supportInput_) {
     Support s;
     s.body = in.body;
     s.key = in.key;
-    s.r = in.point - state_.x[in.body];
+    double separation = in.separation;
+    if (elapsed > 0) {
+      const Vec3 r0 = in.point - stepBegin_.x[in.body];
+      s.r = (state_.q[in.body] * stepBegin_.q[in.body].conjugate())._transformVector(r0);
+      const Vec3 moved = state_.x[in.body] - stepBegin_.x[in.body] + s.r - r0;
+      separation += in.normal.dot(moved - elapsed * in.velocity);
+    } else {
+      s.r = in.point - state_.x[in.body];
+    }
     s.direction[0] = in.normal;
     tangents(in.normal, s.direction[1], s.direction[2]);
     const Mat3& ii = invInertiaWorld_[in.body];
@@ -505,8 +519,8 @@ void RigidWorld::buildSupports(double h) {
       s.mass[k] = sum > 0 ? 1 / sum : 0.0;
       s.speed[k] = s.direction[k].dot(in.velocity);
     }
-    s.separation = s.previousSeparation = in.separation;
-    last_.maxPenetration = std::max(last_.maxPenetration, -in.separation);
+    s.separation = s.previousSeparation = separation;
+    last_.maxPenetration = std::max(last_.maxPenetration, -separation);
     const Vec3 u = state_.v[in.body] + state_.w[in.body].cross(s.r) - in.velocity;
     const Vec3 slip = u - u.dot(in.normal) * in.normal;
     s.friction = slip.norm() < options_.staticSpeed ? m.staticFriction[in.body] : m.kineticFriction[in.body];
