@@ -73,10 +73,6 @@ class SelfCollider {
     double normal[3];
   };
   /// A vertex-triangle or edge-edge pair to advance (vertices as Contact's).
-  struct Primitive {
-    Index vertex[4];
-    bool vertexTriangle;
-  };
   /// What the expansion reads of a triangle, on one cache line: its corners, the vertices
   /// it owns and the ends of the edges it owns (SurfaceTopology), in the topology's order.
   struct alignas(64) Owned {
@@ -85,11 +81,35 @@ class SelfCollider {
     Index edge[3][2];
     std::uint8_t vertices = 0, edges = 0;
   };
-  /// One block of kGrain candidate pairs: their primitive pairs (listed at the gathering,
-  /// those whose skin boxes come within the thickness), and what the last pass found.
+  /// A candidate pair's primitive pairs, as bits of a PrimitiveMask: bit k < 3, the first
+  /// triangle's owned vertex k against the second triangle; 3 + k, the second's owned vertex k
+  /// against the first; 6 + 3 ka + kb, the first's owned edge ka against the second's owned
+  /// edge kb. Ascending bits are the order the pass tests them in.
+  using PrimitiveMask = std::uint16_t;
+  static constexpr int kPrimitiveBits = 15;
+  /// The four vertices of primitive pair `bit` of triangles (first, second), as the queries
+  /// take them (VT: the vertex, then the triangle's corners; EE: one edge, then the other);
+  /// true for a vertex-triangle pair.
+  static bool primitiveVertices(const Owned& first, const Owned& second, int bit, Index (&v)[4]) {
+    if (bit < 6) {
+      const Owned& owner = bit < 3 ? first : second;
+      const Owned& other = bit < 3 ? second : first;
+      v[0] = owner.vertex[bit % 3];
+      v[1] = other.corner[0];
+      v[2] = other.corner[1];
+      v[3] = other.corner[2];
+      return true;
+    }
+    const Index(&e)[2] = first.edge[(bit - 6) / 3];
+    const Index(&f)[2] = second.edge[(bit - 6) % 3];
+    v[0] = e[0];
+    v[1] = e[1];
+    v[2] = f[0];
+    v[3] = f[1];
+    return false;
+  }
+  /// One block of kGrain candidate pairs: what the last pass found in them.
   struct Block {
-    std::vector<Primitive> primitives;
-    std::vector<Index> pairEnd;  // per pair of the block: the end of its primitives
     std::vector<Contact> contacts;
     std::int64_t tests = 0;
     std::int64_t guards = 0;  // contacts below their failsafe threshold
@@ -164,6 +184,9 @@ class SelfCollider {
   BvhPairScratch scratch_;
   std::vector<TrianglePair> pairs_;    // the candidates: triangle pairs, sorted
   std::vector<std::uint8_t> pairHit_;  // (pairs) a primitive of the pair was in contact in the last pass
+  // (pairs) the primitive pairs of each candidate that its skin boxes let come within the
+  // thickness (found at the gathering: expandBlock)
+  std::vector<PrimitiveMask> primitiveMask_;
   std::vector<Block> blocks_;
   Index blocksUsed_ = 0;
   std::vector<std::uint8_t> frozen_;  // (n) stopped by the failsafe in this chunk

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -428,7 +429,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   // A primitive pair to test: its vertices, their positions at the chunk's ends, and the
   // first look of its query (primitive_contact.hpp).
   struct Pending {
-    const Index* v;
+    Index v[4];
     bool vertexTriangle;
     double thickness;
     Index pair;  // the triangle pair's index in pairs_
@@ -476,7 +477,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
   };
   const Index count = static_cast<Index>(pairs_.size());
   const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
-  Index next = 0;  // the pair's first primitive in block.primitives
+  const Owned* owned = owned_.data();
   // The primitive pairs that need a test are gathered, a batch at a time, across triangle
   // pairs; then come their first looks (independent work the processor overlaps), then the
   // full query for those the look leaves open, in their order: the contacts, and which
@@ -495,7 +496,7 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
     }
     m = 0;
   };
-  for (Index pi = begin; pi < end; next = block.pairEnd[static_cast<size_t>(pi - begin)], ++pi) {
+  for (Index pi = begin; pi < end; ++pi) {
     const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
     // After a response only the pairs it moved a vertex of (or that were in contact) can
     // have changed; the others keep their answer (no contact).
@@ -517,18 +518,19 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
       apart = static_cast<double>(first.lo[a]) - static_cast<double>(second.hi[a]) > apartBeyond ||
               static_cast<double>(second.lo[a]) - static_cast<double>(first.hi[a]) > apartBeyond;
     if (apart) continue;  // (then so is every primitive pair of the two)
-    const Index primitivesEnd = block.pairEnd[static_cast<size_t>(pi - begin)];
-    for (; next < primitivesEnd; ++next) {
-      const Primitive& q = block.primitives[static_cast<size_t>(next)];
-      const Index* v = q.vertex;
+    const Owned& firstOwned = owned[pair.first];
+    const Owned& secondOwned = owned[pair.second];
+    for (unsigned mask = primitiveMask_[static_cast<size_t>(pi)]; mask != 0; mask &= mask - 1) {
+      Index v[4];
+      const bool vertexTriangle = primitiveVertices(firstOwned, secondOwned, std::countr_zero(mask), v);
       if (w[v[0]] == S(0) && w[v[1]] == S(0) && w[v[2]] == S(0) && w[v[3]] == S(0)) continue;
       const double thickness = 0.5 * (th[v[0]] + th[v[3]]);
-      if (primitiveBoxesApart(box, v, q.vertexTriangle ? 1 : 2, thickness * kBoxesApart)) continue;
+      if (primitiveBoxesApart(box, v, vertexTriangle ? 1 : 2, thickness * kBoxesApart)) continue;
       ++block.tests;
       if (m == kFirstLookBatch) flush();
       Pending& pending = batch[static_cast<size_t>(m++)];
-      pending.v = v;
-      pending.vertexTriangle = q.vertexTriangle;
+      std::copy(v, v + 4, pending.v);
+      pending.vertexTriangle = vertexTriangle;
       pending.thickness = thickness;
       pending.pair = pi;
       for (int i = 0; i < 4; ++i) {

@@ -115,52 +115,41 @@ void SelfCollider<S>::useCandidates() {
   if (static_cast<Index>(blocks_.size()) < blocks) blocks_.resize(static_cast<size_t>(blocks));
   blocksUsed_ = blocks;
   pairHit_.assign(pairs_.size(), 0);
+  primitiveMask_.resize(pairs_.size());  // (each entry written by expandBlock)
   candidatesValid_ = true;
 }
 
 template <class S>
 void SelfCollider<S>::expandBlock(Index blockIndex) {
-  Block& block = blocks_[static_cast<size_t>(blockIndex)];
-  block.primitives.clear();
-  block.pairEnd.clear();
   const Owned* owned = owned_.data();
   const double* th = thickness_.data();
   // A primitive pair whose skin boxes are farther apart than its thickness cannot come
   // that close while every vertex stays in its skin box.
   const Aabb<S>* box = skinBox_.data();
-  const auto apart = [&](const Index(&v)[4], int split) {
-    return primitiveBoxesApart(box, v, split, 0.5 * (th[v[0]] + th[v[3]]) * kBoxesApart);
-  };
   const Index count = static_cast<Index>(pairs_.size());
   const Index begin = blockIndex * kGrain, end = std::min(count, begin + kGrain);
   for (Index pi = begin; pi < end; ++pi) {
     const TrianglePair pair = pairs_[static_cast<size_t>(pi)];
     const Owned& first = owned[pair.first];
     const Owned& second = owned[pair.second];
-    // Vertices owned by one triangle against the other.
-    for (int side = 0; side < 2; ++side) {
-      const Owned& owner = side == 0 ? first : second;
-      const Index* other = side == 0 ? second.corner : first.corner;
-      for (int k = 0; k < owner.vertices; ++k) {
-        const Index v = owner.vertex[k];
-        if (v == other[0] || v == other[1] || v == other[2]) continue;
-        const Index vt[4] = {v, other[0], other[1], other[2]};
-        if (apart(vt, 1)) continue;
-        block.primitives.push_back({{v, other[0], other[1], other[2]}, true});
-      }
-    }
-    // Edges owned by one against edges owned by the other.
-    for (int ka = 0; ka < first.edges; ++ka) {
-      const Index(&e)[2] = first.edge[ka];
-      for (int kb = 0; kb < second.edges; ++kb) {
-        const Index(&f)[2] = second.edge[kb];
-        if (e[0] == f[0] || e[0] == f[1] || e[1] == f[0] || e[1] == f[1]) continue;
-        const Index ee[4] = {e[0], e[1], f[0], f[1]};
-        if (apart(ee, 2)) continue;
-        block.primitives.push_back({{e[0], e[1], f[0], f[1]}, false});
-      }
-    }
-    block.pairEnd.push_back(static_cast<Index>(block.primitives.size()));
+    PrimitiveMask mask = 0;
+    const auto consider = [&](int bit) {
+      Index v[4];
+      const bool vertexTriangle = primitiveVertices(first, second, bit, v);
+      // Pairs sharing a particle are not tested (a vertex of the triangle, a common end).
+      if (vertexTriangle ? (v[0] == v[1] || v[0] == v[2] || v[0] == v[3])
+                         : (v[0] == v[2] || v[0] == v[3] || v[1] == v[2] || v[1] == v[3]))
+        return;
+      if (primitiveBoxesApart(box, v, vertexTriangle ? 1 : 2, 0.5 * (th[v[0]] + th[v[3]]) * kBoxesApart)) return;
+      mask = static_cast<PrimitiveMask>(mask | (1u << bit));
+    };
+    // Vertices owned by one triangle against the other, then edges owned by one against
+    // edges owned by the other.
+    for (int k = 0; k < first.vertices; ++k) consider(k);
+    for (int k = 0; k < second.vertices; ++k) consider(3 + k);
+    for (int ka = 0; ka < first.edges; ++ka)
+      for (int kb = 0; kb < second.edges; ++kb) consider(6 + 3 * ka + kb);
+    primitiveMask_[static_cast<size_t>(pi)] = mask;
   }
 }
 
@@ -235,8 +224,8 @@ std::size_t SelfCollider<S>::listBytes() const {
   // touches, only one pass's contacts: its size counts.)
   std::size_t total = vectorBytes(pairs_) + vectorBytes(pairHit_) + vectorBytes(blocks_) +
                       shares_.size() * sizeof(Share) + scratch_.heldBytes();
-  for (const Block& block : blocks_)
-    total += vectorBytes(block.primitives) + vectorBytes(block.pairEnd) + vectorBytes(block.contacts);
+  total += vectorBytes(primitiveMask_);
+  for (const Block& block : blocks_) total += vectorBytes(block.contacts);
   return total;
 }
 

@@ -95,13 +95,15 @@ constexpr double kBytesPerTriangle = 12;
 // A folded cloth lists more candidates than a flat one, so this is the floor of a run.
 constexpr double kBytesPerSelfCollisionTriangle = 1064;
 // What a cloth folded on itself adds to that: `twist` (32^2, 1922 triangles, 2 threads)
-// peaks at 26.8 MiB at its end against 14.1 estimated from the rate above (2026-12-01, AMD
-// EPYC). Its self-collision holds then 59,700 candidate pairs (31 a triangle) and 11.7 MB:
+// peaked at 26.8 MiB at its end against 14.1 estimated from the rate above (2026-12-01, AMD
+// EPYC). Its self-collision held then 59,700 candidate pairs (31 a triangle) and 11.7 MB:
 // their primitive pairs 4.0 MB, the pair query's buffers 3.1 MB, the response's contacts
 // and shares 1.6 and 2.3 MB, the pairs 0.5 MB. Candidates are a local count (the triangles
-// within the thickness of each), so the rate is per triangle: 13.3 MB / 1922 is 6.9 kB, and
-// 7.3 kB leaves a margin of about 5 % (twist at 48^2 took 6.5 kB a triangle).
-constexpr double kBytesPerFoldedTriangle = 7300;
+// within the thickness of each), so the rate is per triangle. Since the primitive pairs are
+// 2 bytes a candidate (a mask) instead of 20 each, twist peaks at 23.2 MiB (4.9 kB a
+// triangle past the first figure) and at 48^2 at 37.6 MiB (4.8 kB); 5.5 kB leaves a margin of
+// about 12 % (the peak varies by about 1 MiB from run to run with the threads' buffers).
+constexpr double kBytesPerFoldedTriangle = 5500;
 // Resident memory a rigid body's share of the world takes once a pile of them has landed
 // (pairs, caches, manifolds, constraints: their buffers are reserved for 16 pairs a piece
 // and become resident as the contacts fill them), measured on the `pile` (1005 bodies):

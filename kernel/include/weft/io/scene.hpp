@@ -118,7 +118,7 @@ std::int64_t sceneStepCount(const SceneSpec& scene);
 /// Self-collision's candidate and contact lists grow as a cloth folds on itself or is
 /// wrung, which cannot be known before the run: `bytes` counts them for a cloth as it
 /// starts (smooth, few candidates) and `foldedBytes` for a cloth folded as tightly as the
-/// built-in `twist` at its end (about 31 candidate pairs a triangle, 7.3 kB a triangle
+/// built-in `twist` at its end (about 31 candidate pairs a triangle, 5.5 kB a triangle
 /// more beside the Simulation; the larger of that and what building the model holds), an
 /// upper figure for a run that folds. Without self-collision both are the same.
 /// A test keeps `bytes` within 25 % of the peak resident memory of the built-in scenes
