@@ -128,8 +128,9 @@ class SelfCollider {
   bool candidatesCover(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec);
   /// The mean of x's rows, summed in a fixed order.
   std::array<double, 3> centroid(const Vec3Array<S>& x, const Executor& exec);
-  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates; false (and
-  /// no candidates) past the limit.
+  /// New skin boxes around the chunk x0 -> x1, the BVH pairs and the candidates (their
+  /// primitive pairs are then found by detect, expandBlock); false (and no candidates) past
+  /// the limit.
   bool gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const Executor& exec,
                         SelfCollisionStats& stats);
   /// Advancement on every candidate for the chunk x0 -> x1 into blocks_, with the failsafe's
@@ -138,7 +139,7 @@ class SelfCollider {
               SelfCollisionStats& stats);
   /// Sizes the blocks and flags for the candidate list in pairs_.
   void useCandidates();
-  /// Lists the primitive pairs of one block's triangle pairs (at a gathering).
+  /// Finds the primitive pairs of one block's triangle pairs (at a gathering).
   void expandBlock(Index blockIndex);
   /// The triangle pairs of each block's range that may hold a contact in this chunk
   /// (thickness filter, owned primitives, advancement) into the block's contacts.

@@ -549,7 +549,8 @@ void SelfCollider<S>::detectBlock(Index blockIndex, const Vec3Array<S>& x0, cons
 template <class S>
 bool SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, const ScalarArray<S>& w,
                              const Executor& exec, SelfCollisionStats& stats) {
-  if (!candidatesCover(x0, x1, exec)) {
+  const bool gathered = !candidatesCover(x0, x1, exec);
+  if (gathered) {
     if (!gatherCandidates(x0, x1, exec, stats)) return false;
     onlyMoved_ = false;  // new candidates: test them all
   }
@@ -577,8 +578,13 @@ bool SelfCollider<S>::detect(const Vec3Array<S>& x0, const Vec3Array<S>& x1, con
     }
   });
   const bool all = !onlyMoved_;
+  // New candidates' primitive pairs are found block by block just before the block is
+  // tested (its pairs, their triangles' records and boxes still in cache).
   exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
-    for (Index k = kb; k < ke; ++k) detectBlock(k, x0, x1, w, all);
+    for (Index k = kb; k < ke; ++k) {
+      if (gathered) expandBlock(k);
+      detectBlock(k, x0, x1, w, all);
+    }
   });
   for (Index k = 0; k < blocksUsed_; ++k) stats.tests += blocks_[static_cast<size_t>(k)].tests;
   return true;

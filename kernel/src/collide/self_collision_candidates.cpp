@@ -102,10 +102,7 @@ bool SelfCollider<S>::gatherCandidates(const Vec3Array<S>& x0, const Vec3Array<S
   }
   ++stats.rebuilds;
   stats.candidates += static_cast<std::int64_t>(pairs_.size());
-  useCandidates();
-  exec.parallelFor(blocksUsed_, 1, [&](Index kb, Index ke) {
-    for (Index k = kb; k < ke; ++k) expandBlock(k);
-  });
+  useCandidates();  // (their primitive pairs: expandBlock, in detect's pass over the blocks)
   return true;
 }
 
