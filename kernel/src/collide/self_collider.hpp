@@ -72,7 +72,6 @@ class SelfCollider {
     double weights[4];
     double normal[3];
   };
-  /// A vertex-triangle or edge-edge pair to advance (vertices as Contact's).
   /// What the expansion reads of a triangle, on one cache line: its corners, the vertices
   /// it owns and the ends of the edges it owns (SurfaceTopology), in the topology's order.
   struct alignas(64) Owned {
@@ -86,7 +85,7 @@ class SelfCollider {
   /// against the first; 6 + 3 ka + kb, the first's owned edge ka against the second's owned
   /// edge kb. Ascending bits are the order the pass tests them in.
   using PrimitiveMask = std::uint16_t;
-  static constexpr int kPrimitiveBits = 15;
+  static_assert(6 + 3 * 3 <= 8 * sizeof(PrimitiveMask), "a mask holds 6 VT and 9 EE pairs");
   /// The four vertices of primitive pair `bit` of triangles (first, second), as the queries
   /// take them (VT: the vertex, then the triangle's corners; EE: one edge, then the other);
   /// true for a vertex-triangle pair.
