@@ -317,6 +317,7 @@ TEST(RigidContact, HeldPointsHoldABodyInEveryChunkOfAStepTakenInChunks) {
     b.velocity = {0, -4, 0};
     return b;
   };
+  const auto corner = [&](int c) { return Vec3((c & 1) ? half : -half, -half, (c & 2) ? half : -half); };
   double deepest[2] = {0, 0};
   std::int64_t chunks[2] = {0, 0};
   for (const bool withA : {false, true}) {
@@ -337,19 +338,16 @@ TEST(RigidContact, HeldPointsHoldABodyInEveryChunkOfAStepTakenInChunks) {
     for (int k = 0; k < 60; ++k) {
       SupportContact held[4];
       for (int c = 0; c < 4; ++c) {
-        const Vec3 corner((c & 1) ? half : -half, -half, (c & 2) ? half : -half);
         held[c].body = 1;
-        held[c].point = world.state().x[1] + world.state().q[1] * corner;
+        held[c].point = world.state().x[1] + world.state().q[1] * corner(c);
         held[c].normal = Vec3::UnitY();
         held[c].separation = held[c].point.y();
         held[c].key = static_cast<std::uint64_t>(c);
       }
       world.setSupports(held, 4);
       ASSERT_TRUE(world.step(h, exec).ok());
-      for (int c = 0; c < 4; ++c) {
-        const Vec3 corner((c & 1) ? half : -half, -half, (c & 2) ? half : -half);
-        deepest[withA] = std::max(deepest[withA], -(world.state().x[1] + world.state().q[1] * corner).y());
-      }
+      for (int c = 0; c < 4; ++c)
+        deepest[withA] = std::max(deepest[withA], -(world.state().x[1] + world.state().q[1] * corner(c)).y());
     }
     chunks[withA] = world.totalStats().chunks;
   }

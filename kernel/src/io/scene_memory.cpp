@@ -102,7 +102,7 @@ constexpr double kBytesPerSelfCollisionTriangle = 1064;
 // within the thickness of each), so the rate is per triangle. Since the primitive pairs are
 // 2 bytes a candidate (a mask) instead of 20 each, twist peaks at 23.2 MiB (4.9 kB a
 // triangle past the first figure) and at 48^2 at 37.6 MiB (4.8 kB); 5.5 kB leaves a margin of
-// about 12 % (the peak varies by about 1 MiB from run to run with the threads' buffers).
+// 13-15 % (the peak varies by about 1 MiB from run to run with the threads' buffers).
 constexpr double kBytesPerFoldedTriangle = 5500;
 // Resident memory a rigid body's share of the world takes once a pile of them has landed
 // (pairs, caches, manifolds, constraints: their buffers are reserved for 16 pairs a piece
