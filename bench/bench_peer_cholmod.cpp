@@ -9,7 +9,10 @@
 //       workspace reused: nothing allocated after the first call). O = 0: CHOLMOD's own
 //       ordering (its default: AMD, and METIS where AMD's fill is high); O = 1: weft's
 //       (nested dissection + AMD, which CHOLMOD postorders as it does its own: the same
-//       fill, supernodes as large as the tree allows). K = 0: simplicial LDL^T
+//       fill, supernodes as large as the tree allows); O = 2: METIS's nested dissection
+//       (Debian's CHOLMOD links METIS 5), O = 3: CHOLMOD's own nested dissection (NESDIS),
+//       both postordered: how much fill a better ordering than weft's would save (the
+//       solve's cost is proportional to it). K = 0: simplicial LDL^T
 //       (what Eigen's SimplicialLDLT and weft store); K = 1: supernodal LL^T (dense blocks
 //       through the BLAS Debian links, reference BLAS unless OpenBLAS is installed).
 //   BM_Peer_Cholmod_Factor/size:N/ordering:O/supernodal:K
@@ -47,7 +50,7 @@ constexpr double kStep = 1.0 / 60;
 // P of the flag, CHOLMOD's factor of it and a right-hand side (the flag's positions).
 class CholmodSystem {
  public:
-  CholmodSystem(weft::Index size, bool weftOrdering, bool supernodal)
+  CholmodSystem(weft::Index size, int ordering, bool supernodal)
       : flag_(weft::makeFlag<double>(size)), solver_(flag_.model, 1.0, "BM_Peer_Cholmod") {
     cholmod_start(&common_);
     common_.supernodal = supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
@@ -65,7 +68,13 @@ class CholmodSystem {
     for (Eigen::Index j = 0; j <= p.cols(); ++j) columns[j] = p.outerIndexPtr()[j];
     std::copy(p.innerIndexPtr(), p.innerIndexPtr() + p.nonZeros(), rows);
     std::copy(p.valuePtr(), p.valuePtr() + p.nonZeros(), values);
-    if (weftOrdering) {
+    const bool weftOrdering = ordering == 1;
+    if (ordering >= 2) {
+      common_.nmethods = 1;
+      common_.method[0].ordering = ordering == 2 ? CHOLMOD_METIS : CHOLMOD_NESDIS;
+      common_.postorder = 1;
+      L_ = cholmod_analyze(A_, &common_);
+    } else if (weftOrdering) {
       std::vector<int> order(n_);  // order[k] = the particle in row k
       for (std::size_t i = 0; i < n_; ++i)
         order[static_cast<std::size_t>(solver_.positions()[i])] = static_cast<int>(i);
@@ -164,7 +173,7 @@ class CholmodSystem {
 };
 
 void BM_Peer_Cholmod_Solve(benchmark::State& st) {
-  CholmodSystem system(static_cast<weft::Index>(st.range(0)), st.range(1) != 0, st.range(2) != 0);
+  CholmodSystem system(static_cast<weft::Index>(st.range(0)), static_cast<int>(st.range(1)), st.range(2) != 0);
   if (!system.solve()) {  // the first solve allocates X, Y and E
     st.SkipWithError("cholmod_solve2 failed");
     return;
@@ -186,15 +195,15 @@ void BM_Peer_Cholmod_Solve(benchmark::State& st) {
   st.counters["max_difference_vs_weft"] = system.differenceFromWeft();
   st.SetLabel(system.orderingName());
 }
-// Both benchmarks' cases: the 64^2 and 128^2 flags, either ordering, either factor.
+// Both benchmarks' cases: the 64^2 and 128^2 flags, the four orderings, either factor.
 void cholmodCases(benchmark::internal::Benchmark* b) {
-  b->ArgNames({"size", "ordering", "supernodal"})->ArgsProduct({{64, 128}, {0, 1}, {0, 1}})->UseRealTime();
+  b->ArgNames({"size", "ordering", "supernodal"})->ArgsProduct({{64, 128}, {0, 1, 2, 3}, {0, 1}})->UseRealTime();
 }
 
 BENCHMARK(BM_Peer_Cholmod_Solve)->Apply(cholmodCases)->Unit(benchmark::kMicrosecond);
 
 void BM_Peer_Cholmod_Factor(benchmark::State& st) {
-  CholmodSystem system(static_cast<weft::Index>(st.range(0)), st.range(1) != 0, st.range(2) != 0);
+  CholmodSystem system(static_cast<weft::Index>(st.range(0)), static_cast<int>(st.range(1)), st.range(2) != 0);
   for (auto _ : st)
     if (!system.factorize()) {
       st.SkipWithError("cholmod_factorize failed");
