@@ -450,6 +450,64 @@ TYPED_TEST(SimulationTest, WarnsOfSpringsRoundingChangesByMoreThanAPercent) {
   EXPECT_THAT(pastAfter[0], ::testing::HasSubstr(") is "));
 }
 
+// A spring pulled past twice its rest length (short of the check's 10x, so the run goes on)
+// is said after a step, naming the longest and the likelier cause for the integrator; not
+// before any step, and not for a flag that hangs as it should.
+TYPED_TEST(SimulationTest, WarnsOfASpringPulledPastTwiceItsRestLength) {
+  using S = TypeParam;
+  for (const IntegratorKind kind : {IntegratorKind::Rk4, IntegratorKind::Projective, IntegratorKind::ImplicitEuler}) {
+    SCOPED_TRACE(integratorName(kind));
+    Simulation<S> sim(makeFlag<S>(8), flagOptions(kind, ForceStrategy::Auto, 1, 1e-4));
+    for (int k = 0; k < 10; ++k) ASSERT_TRUE(sim.step().ok());
+    EXPECT_TRUE(sim.warnings().empty());
+    // The free corner moved 0.5 m off the flag's plane: its springs are 3-5x their rest length.
+    State<S> pulled = sim.state();
+    const Index corner = pulled.x.rows() - 1;
+    ASSERT_FALSE(sim.model().isPinned(corner));
+    pulled.x(corner, 2) += S(0.5);
+    sim.setState(pulled);
+    EXPECT_TRUE(sim.warnings().empty());  // (no step since: the start is the user's)
+    ASSERT_TRUE(sim.step().ok());
+    const std::vector<std::string> w = sim.warnings();
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_THAT(w[0], ::testing::StartsWith("spring "));
+    const std::string named = "and " + std::to_string(corner) + ") is ";
+    const size_t at = w[0].find(named);
+    ASSERT_NE(at, std::string::npos) << w[0];
+    const double ratio = std::stod(w[0].substr(at + named.size()));
+    EXPECT_GT(ratio, 3);
+    EXPECT_LT(ratio, 10);
+    EXPECT_THAT(w[0], ::testing::HasSubstr(" x its rest length now (the longest; more than 2 x)"));
+    // (Projective dynamics converged here: the iterations are not blamed.)
+    EXPECT_THAT(w[0],
+                ::testing::HasSubstr(kind == IntegratorKind::Rk4 ? "explicit method" : "reduce dt (now 0.0001 s)"));
+    if (kind != IntegratorKind::Rk4) {
+      EXPECT_THAT(w[0], ::testing::Not(::testing::HasSubstr("iterations")));
+    }
+    // Put back: nothing to say after a step.
+    pulled.x(corner, 2) -= S(0.5);
+    sim.setState(pulled);
+    ASSERT_TRUE(sim.step().ok());
+    EXPECT_TRUE(sim.warnings().empty());
+  }
+  // Projective dynamics far from converged (one iteration: its correction is all of the
+  // step's displacement): the iterations are named, with the last one's change.
+  SimulationOptions o = flagOptions(IntegratorKind::Projective, ForceStrategy::Auto, 1, 1e-4);
+  o.integration.projectiveIterations = 1;
+  Simulation<S> sim(makeFlag<S>(8), o);
+  State<S> pulled = sim.state();
+  pulled.x(pulled.x.rows() - 1, 2) += S(0.5);
+  sim.setState(pulled);
+  ASSERT_TRUE(sim.step().ok());
+  const std::vector<std::string> w = sim.warnings();
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_GT(sim.lastWork().linearResidual, Simulation<S>::kUnconvergedProjective);
+  EXPECT_THAT(w[0],
+              ::testing::HasSubstr("projective dynamics with 1 iterations leaves a stiff cloth softer than it is"));
+  EXPECT_THAT(w[0],
+              ::testing::HasSubstr("raise the iterations (IntegratorOptions::projectiveIterations, --pd-iterations)"));
+}
+
 // A chain of ten 1 g beads 10 cm apart on springs of `stiffness` N/m, the first pinned,
 // stepped by rk45 (adaptive or not) at dt, on one thread.
 template <class S>

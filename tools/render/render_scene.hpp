@@ -17,8 +17,9 @@
 namespace weftrender {
 
 /// Default camera angles, radians: from the front right, a little above.
-inline constexpr float kDefaultAzimuth = 0.61f;    // 35 degrees
-inline constexpr float kDefaultElevation = 0.38f;  // 22 degrees
+/// (Exactly the degrees `--camera 35,22` gives, so that naming the default reproduces it.)
+inline constexpr float kDefaultAzimuth = static_cast<float>(35 * 3.14159265358979323846 / 180);
+inline constexpr float kDefaultElevation = static_cast<float>(22 * 3.14159265358979323846 / 180);
 
 /// Creates `directory` (and its parents) and checks that a file can be written in it.
 /// Throws std::invalid_argument naming `option`, the directory and the reason.

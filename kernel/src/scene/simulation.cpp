@@ -646,6 +646,58 @@ std::string Simulation<S>::roundingWarning() const {
   return w.str();
 }
 
+// A line for warnings() when, after a step, a spring is longer than kStretchWarning x its
+// rest length (one pass over the springs, in double). The check of each step stops a run at
+// StabilityOptions::maxStretch (10 x by default); a cloth pulled past twice its length and
+// short of that would otherwise end "ok" and look torn: projective dynamics with too few
+// iterations on a cloth that folds onto itself ended so at 7.4 x (its contacts pull apart a
+// cloth the iterations leave too soft to pull back).
+template <class S>
+std::string Simulation<S>::stretchWarning() const {
+  if (stepCount_ == startStep_) return {};
+  const Springs<S>& sp = model_->springs();
+  const Vec3Array<S>& x = state_.x;
+  double longest = 0;
+  Index worst = -1;
+  for (Index s = 0; s < sp.count(); ++s) {
+    const double rest = static_cast<double>(sp.restLength[s]);
+    if (!(rest > 0)) continue;
+    double length2 = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(x(sp.a[s], c)) - static_cast<double>(x(sp.b[s], c));
+      length2 += d * d;
+    }
+    const double ratio = std::sqrt(length2) / rest;
+    if (ratio > longest) {
+      longest = ratio;
+      worst = s;
+    }
+  }
+  if (!(longest > kStretchWarning)) return {};
+  std::ostringstream w;
+  w << "spring " << worst << " (particles " << sp.a[worst] << " and " << sp.b[worst] << ") is " << longest
+    << " x its rest length now (the longest; more than " << kStretchWarning
+    << " x): unless the springs are meant to be that soft, the cloth is being pulled apart; ";
+  const IntegratorKind kind = options_.integrator;
+  if (kind == IntegratorKind::Projective && lastWork_.linearResidual > kUnconvergedProjective) {
+    w << "projective dynamics with " << options_.integration.projectiveIterations
+      << " iterations leaves a stiff cloth softer than it is (the last step's last iteration still changed it by "
+      << lastWork_.linearResidual
+      << " of its displacement), and contacts can then stretch what the iterations do not pull back: raise the "
+         "iterations (IntegratorOptions::projectiveIterations, --pd-iterations) or reduce dt (now "
+      << options_.dt << " s)";
+  } else if (kind == IntegratorKind::ImplicitEuler || kind == IntegratorKind::Projective) {
+    w << "reduce dt (now " << options_.dt << " s)";
+  } else {
+    const double stable = estimateStableTimeStep(*model_, kind);
+    w << "an explicit method near or past its stability limit stretches springs before the check stops it at "
+      << options_.stability.maxStretch << " x: reduce dt (now " << options_.dt << " s";
+    if (stable > 0 && std::isfinite(stable)) w << "; its estimated stability limit " << stable << " s";
+    w << ")";
+  }
+  return w.str();
+}
+
 template <class S>
 std::vector<std::string> Simulation<S>::warnings() const {
   std::vector<std::string> out;
@@ -713,6 +765,10 @@ std::vector<std::string> Simulation<S>::warnings() const {
     out.push_back(w.str());
   }
   if (const std::string rounding = roundingWarning(); !rounding.empty()) out.push_back(rounding);
+  // (A particle that started inside an obstacle, or a body driven through the cloth, tears
+  // it, and their lines above say so: a stretched spring is then no news.)
+  if (startPenetration() == 0 && totalCoupling_.crossings == 0)
+    if (const std::string stretched = stretchWarning(); !stretched.empty()) out.push_back(stretched);
   // Adaptive rk45 on a stiff model: its error control holds the substep near the stability
   // limit of the stiffest spring, not where the accuracy asks, and the run takes that many
   // substeps a step where an implicit method takes one solve. Before the first step it is

@@ -131,6 +131,14 @@ class Simulation {
   /// - a spring whose length rounding to the precision can change by more than 1 % of its
   ///   rest length (it lies that far from the origin), now or at the start, naming the
   ///   worst one (a model where that exceeds 10 % does not build);
+  /// - after a step, a spring longer than kStretchWarning x its rest length (stretched past
+  ///   twice it, short of the check's StabilityOptions::maxStretch), naming the longest, with
+  ///   the likelier cause for the integrator: too few projective iterations (the last step's
+  ///   last one still changed it by more than kUnconvergedProjective; they leave a
+  ///   stiff cloth softer than it is, and contacts then pull it apart), a step past an explicit
+  ///   method's stability limit, or a step too large; springs meant to be that soft can ignore it
+  ///   (not said with a particle that started inside an obstacle or a body that went through
+  ///   the cloth: their lines say it tears);
   /// - adaptive rk45 that took kStiffSubsteps or more substeps a step on average with its
   ///   mean substep within 4x of its stability limit (estimateStableTimeStep): a model too
   ///   stiff for an explicit method, with the methods that take one solve a step; before the
@@ -142,6 +150,12 @@ class Simulation {
   std::vector<std::string> warnings() const;
   /// The mean substeps a step of adaptive rk45 from which warnings() speaks of stiffness.
   static constexpr double kStiffSubsteps = 100;
+  /// The length, in rest lengths, past which warnings() speaks of a spring after a step.
+  static constexpr double kStretchWarning = 2;
+  /// The last iteration's change (StepWork::linearResidual) past which that warning blames
+  /// projective dynamics' iteration count (40 iterations leave 0.04 on a 64^2 flag at 1/60 s,
+  /// 160 leave 0.003: docs/integrators.md).
+  static constexpr double kUnconvergedProjective = 0.01;
   /// Free particles that went through an obstacle between the start (as for warnings())
   /// and now: contactReport(&start).tunnelled, with the start kept by the simulation (its
   /// positions, only when there are obstacles). A particle that went through a solid
@@ -303,6 +317,7 @@ class Simulation {
   Rounding worstRounding(const Vec3Array<S>& x) const;
   Rounding startRounding_;
   std::string roundingWarning() const;
+  std::string stretchWarning() const;
   // selfIntersectionCount() of the state now (-1: not counted since a step, a new start or
   // a restore, each of which forgets it).
   mutable std::int64_t nowIntersections_ = -1;
