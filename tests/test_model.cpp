@@ -861,6 +861,9 @@ TEST(Stretch, MaxAndMeanOfTheStructuralSpringsByHand) {
   EXPECT_EQ(s.springs, 2);
   EXPECT_NEAR(s.max, 0.6 / 0.5 - 1, 1e-15);
   EXPECT_NEAR(s.mean, ((0.6 / 0.5 - 1) + (0.9 / 1.0 - 1)) / 2, 1e-15);  // (0.2 - 0.1) / 2 = 0.05
+  ASSERT_GE(s.longest, 0);                                              // the spring 0-1 (+20 %)
+  EXPECT_EQ(m.model.springs().a[s.longest], p0);
+  EXPECT_EQ(m.model.springs().b[s.longest], p1);
   const Stretch shear = stretch(m.model, m.state, SpringClass::Shear);
   EXPECT_EQ(shear.springs, 1);
   EXPECT_NEAR(shear.max, 0.5, 1e-15);
@@ -887,6 +890,7 @@ TEST(Stretch, MaxAndMeanOfTheStructuralSpringsByHand) {
   EXPECT_EQ(none.springs, 0);
   EXPECT_EQ(none.max, 0);
   EXPECT_EQ(none.mean, 0);
+  EXPECT_EQ(none.longest, -1);
 }
 
 TEST(Stretch, BadInputsAreRefusedByName) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
@@ -18,8 +19,8 @@ namespace weftrender {
 
 /// Default camera angles, radians: from the front right, a little above.
 /// (Exactly the degrees `--camera 35,22` gives, so that naming the default reproduces it.)
-inline constexpr float kDefaultAzimuth = static_cast<float>(35 * 3.14159265358979323846 / 180);
-inline constexpr float kDefaultElevation = static_cast<float>(22 * 3.14159265358979323846 / 180);
+inline constexpr float kDefaultAzimuth = static_cast<float>(35 * std::numbers::pi / 180);
+inline constexpr float kDefaultElevation = static_cast<float>(22 * std::numbers::pi / 180);
 
 /// Creates `directory` (and its parents) and checks that a file can be written in it.
 /// Throws std::invalid_argument naming `option`, the directory and the reason.

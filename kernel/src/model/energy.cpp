@@ -46,18 +46,23 @@ Stretch stretch(const Model<S>& model, const State<S>& state, SpringClass kind) 
   const auto& sp = model.springs();
   Stretch out;
   double largest = -std::numeric_limits<double>::infinity(), sum = 0;
+  Index longest = -1;
   for (Index s = 0; s < sp.count(); ++s) {
     if (sp.kind[static_cast<std::size_t>(s)] != kind || !(sp.restLength[s] > S(0))) continue;
     const double dx = double(state.x(sp.a[s], 0)) - double(state.x(sp.b[s], 0));
     const double dy = double(state.x(sp.a[s], 1)) - double(state.x(sp.b[s], 1));
     const double dz = double(state.x(sp.a[s], 2)) - double(state.x(sp.b[s], 2));
     const double e = std::sqrt(dx * dx + dy * dy + dz * dz) / double(sp.restLength[s]) - 1.0;
-    if (std::isnan(e) || e > largest) largest = e;  // a non-finite state gives a NaN maximum
+    if (!std::isnan(largest) && (std::isnan(e) || e > largest)) {  // a non-finite state gives a NaN maximum
+      largest = e;
+      longest = s;
+    }
     sum += e;
     ++out.springs;
   }
   if (out.springs > 0) {
     out.max = largest;
+    out.longest = longest;
     out.mean = sum / static_cast<double>(out.springs);
   }
   return out;

@@ -16,6 +16,7 @@
 #include "core/text.hpp"
 #include "model/precision_limits.hpp"
 #include "rigid/particle_contacts.hpp"
+#include "weft/model/energy.hpp"
 
 namespace weft {
 
@@ -646,34 +647,20 @@ std::string Simulation<S>::roundingWarning() const {
   return w.str();
 }
 
-// A line for warnings() when, after a step, a spring is longer than kStretchWarning x its
-// rest length (one pass over the springs, in double). The check of each step stops a run at
-// StabilityOptions::maxStretch (10 x by default); a cloth pulled past twice its length and
-// short of that would otherwise end "ok" and look torn: projective dynamics with too few
-// iterations on a cloth that folds onto itself ended so at 7.4 x (its contacts pull apart a
-// cloth the iterations leave too soft to pull back).
+// A line for warnings() when, after a step, a structural spring (what `max_stretch` of
+// weft run measures: weft::stretch) is longer than kStretchWarning x its rest length. The
+// check of each step stops a run at StabilityOptions::maxStretch (10 x by default); a cloth
+// pulled past twice its length and short of that would otherwise end "ok" and look torn:
+// projective dynamics with too few iterations on a cloth that folds onto itself ended so at
+// 8.4 x (its contacts pull apart a cloth the iterations leave too soft to pull back).
 template <class S>
 std::string Simulation<S>::stretchWarning() const {
   if (stepCount_ == startStep_) return {};
-  const Springs<S>& sp = model_->springs();
-  const Vec3Array<S>& x = state_.x;
-  double longest = 0;
-  Index worst = -1;
-  for (Index s = 0; s < sp.count(); ++s) {
-    const double rest = static_cast<double>(sp.restLength[s]);
-    if (!(rest > 0)) continue;
-    double length2 = 0;
-    for (int c = 0; c < 3; ++c) {
-      const double d = static_cast<double>(x(sp.a[s], c)) - static_cast<double>(x(sp.b[s], c));
-      length2 += d * d;
-    }
-    const double ratio = std::sqrt(length2) / rest;
-    if (ratio > longest) {
-      longest = ratio;
-      worst = s;
-    }
-  }
+  const Stretch now = stretch(*model_, state_);
+  const double longest = now.max + 1;
   if (!(longest > kStretchWarning)) return {};
+  const Springs<S>& sp = model_->springs();
+  const Index worst = now.longest;
   std::ostringstream w;
   w << "spring " << worst << " (particles " << sp.a[worst] << " and " << sp.b[worst] << ") is " << longest
     << " x its rest length now (the longest; more than " << kStretchWarning

@@ -36,9 +36,10 @@ extern template Energy energy(const Model<double>&, const State<double>&, const 
 
 /// The stretch of the springs of one class in a state.
 struct Stretch {
-  double max = 0;     // the largest |x_a - x_b| / rest - 1 (0 when no spring is counted)
-  double mean = 0;    // the mean of |x_a - x_b| / rest - 1, signed (0 when no spring is counted)
-  Index springs = 0;  // springs counted: those of the class with a rest length > 0
+  double max = 0;      // the largest |x_a - x_b| / rest - 1 (0 when no spring is counted)
+  double mean = 0;     // the mean of |x_a - x_b| / rest - 1, signed (0 when no spring is counted)
+  Index springs = 0;   // springs counted: those of the class with a rest length > 0
+  Index longest = -1;  // the spring with the largest stretch, the first on a tie (-1 when none is counted)
 };
 
 /// The stretch of the springs of class `kind` (by default the structural ones: a cloth

@@ -131,7 +131,7 @@ class Simulation {
   /// - a spring whose length rounding to the precision can change by more than 1 % of its
   ///   rest length (it lies that far from the origin), now or at the start, naming the
   ///   worst one (a model where that exceeds 10 % does not build);
-  /// - after a step, a spring longer than kStretchWarning x its rest length (stretched past
+  /// - after a step, a structural spring (weft::stretch) longer than kStretchWarning x its rest length (stretched past
   ///   twice it, short of the check's StabilityOptions::maxStretch), naming the longest, with
   ///   the likelier cause for the integrator: too few projective iterations (the last step's
   ///   last one still changed it by more than kUnconvergedProjective; they leave a
